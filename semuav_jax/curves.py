@@ -1,0 +1,100 @@
+"""DeepJSCC PSNR curves C[i, k]: the quality lookup of MODEL.md section 9 (eq. Q1 in docs/model.md).
+
+A curves file is an ``.npz`` with two entries: ``C`` (float32, images x (M+1), PSNR in dB of
+test image i decoded from its first k symbols) and ``meta`` (a JSON string with at least ``M``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import tempfile
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+DEFAULT_CURVES = "psnr_curves.npz"
+REQUIRED_META = ("M",)
+
+
+@dataclasses.dataclass(frozen=True)
+class PSNRCurves:
+    """PSNR curves and their metadata; ``C`` has shape (images, M + 1)."""
+
+    C: np.ndarray
+    meta: dict
+
+    @property
+    def M(self) -> int:
+        return self.C.shape[1] - 1
+
+    @property
+    def num_images(self) -> int:
+        return self.C.shape[0]
+
+    def __post_init__(self):
+        validate_curves(self.C, self.meta)
+
+
+def validate_curves(C, meta: dict | None = None, where: str = "curves") -> None:
+    """Raise ValueError unless C is a finite 2-D array (images x (M+1)) consistent with ``meta``."""
+    C = np.asarray(C)
+    if C.ndim != 2 or C.shape[0] < 1 or C.shape[1] < 2:
+        raise ValueError(f"{where}: C must have shape (images >= 1, M + 1 >= 2), got {C.shape}")
+    if not np.issubdtype(C.dtype, np.floating):
+        raise ValueError(f"{where}: C must be a float array of PSNR values in dB, got dtype {C.dtype}")
+    if not np.all(np.isfinite(C)):
+        raise ValueError(f"{where}: C contains non-finite values (NaN or inf); every PSNR must be finite")
+    if meta is not None:
+        missing = [k for k in REQUIRED_META if k not in meta]
+        if missing:
+            raise ValueError(f"{where}: metadata lacks {missing}")
+        if int(meta["M"]) != C.shape[1] - 1:
+            raise ValueError(
+                f"{where}: metadata says M = {meta['M']} but C has {C.shape[1]} columns (M + 1 = {C.shape[1]})"
+            )
+
+
+def default_curves_path() -> Path:
+    return Path(str(resources.files("semuav_jax") / "data" / DEFAULT_CURVES))
+
+
+def load_curves(path: str | os.PathLike | None = None) -> PSNRCurves:
+    """Load a curves file; the shipped DeepJSCC curves when ``path`` is None."""
+    path = Path(path) if path is not None else default_curves_path()
+    if not path.is_file():
+        hint = " (regenerate with `python -m semuav_jax.jscc curves`)" if path == default_curves_path() else ""
+        raise FileNotFoundError(f"PSNR curves file not found: {path}{hint}")
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            if "C" not in f.files or "meta" not in f.files:
+                raise ValueError(f"{path}: a curves file needs entries 'C' and 'meta', found {sorted(f.files)}")
+            C = f["C"]
+            meta = json.loads(str(f["meta"]))
+    except ValueError:
+        raise
+    except Exception as e:  # a truncated zip, bad JSON, not an npz at all
+        raise ValueError(f"{path}: not a readable curves file ({type(e).__name__}: {e})") from e
+    validate_curves(C, meta, where=str(path))
+    return PSNRCurves(C=C.astype(np.float32), meta=meta)
+
+
+def save_curves(path: str | os.PathLike, C, meta: dict) -> Path:
+    """Write a curves file atomically (temp file + rename) after validating it."""
+    C = np.asarray(C, dtype=np.float32)
+    meta = {**meta, "M": int(C.shape[1] - 1)}
+    validate_curves(C, meta, where=str(path))
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz.tmp")
+    os.close(fd)
+    try:
+        with open(tmp, "wb") as f:
+            np.savez(f, C=C, meta=np.array(json.dumps(meta, sort_keys=True)))
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+    return path
