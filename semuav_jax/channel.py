@@ -1,0 +1,52 @@
+"""Air-to-ground channel of MODEL.md section 2 (eqs. 2.1-2.6 in docs/model.md).
+
+Functions take the squared horizontal distance ``r2`` and the height difference ``dh`` so the
+hot path needs no square root for the range test and the free-space term.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from semuav_jax.params import EnvParams
+
+_LN10_OVER_10 = float(jnp.log(10.0)) / 10.0
+
+
+def elevation_deg(r2, dh):
+    """Eq. 2.2: elevation angle in degrees, theta = (180/pi) atan2(dh, r)."""
+    return jnp.degrees(jnp.arctan2(dh, jnp.sqrt(r2)))
+
+
+def los_probability(r2, dh, params: EnvParams):
+    """Eq. 2.3: P_LoS = 1 / (1 + a exp(-b (theta - a)))."""
+    theta = elevation_deg(r2, dh)
+    return 1.0 / (1.0 + params.los_a * jnp.exp(-params.los_b * (theta - params.los_a)))
+
+
+def excess_loss_db(r2, dh, params: EnvParams):
+    """The LoS/NLoS term of eq. 2.4: P_LoS eta_LoS + (1 - P_LoS) eta_NLoS, in dB."""
+    p = los_probability(r2, dh, params)
+    return params.eta_nlos + p * (params.eta_los - params.eta_nlos)
+
+
+def free_space_gain(r2, dh, params: EnvParams):
+    """(4 pi f_c d / c)^2, the linear free-space loss of eq. 2.4."""
+    k = 4.0 * jnp.pi * params.f_c / params.c
+    return k * k * (r2 + dh * dh)
+
+
+def path_loss_db(r2, dh, params: EnvParams):
+    """Eq. 2.4: PL = 20 log10(4 pi f_c d / c) + P_LoS eta_LoS + (1 - P_LoS) eta_NLoS, in dB."""
+    return 10.0 * jnp.log10(free_space_gain(r2, dh, params)) + excess_loss_db(r2, dh, params)
+
+
+def snr(r2, dh, power, params: EnvParams):
+    """Eq. 2.5: SNR = P / (sigma^2 10^(PL/10)), computed in linear form (no log10, no pow)."""
+    loss = free_space_gain(r2, dh, params) * jnp.exp(_LN10_OVER_10 * excess_loss_db(r2, dh, params))
+    return power / (params.noise * loss)
+
+
+def rate(r2, dh, power, bandwidth, params: EnvParams):
+    """Eq. 2.6: R = B log2(1 + SNR), bit/s."""
+    return bandwidth * jnp.log1p(snr(r2, dh, power, params)) / jnp.log(2.0)

@@ -1,0 +1,171 @@
+"""The environment of MODEL.md section 3, in gymnax's functional style.
+
+``transition`` is one slot driven by a continuous acceleration (what the baselines command);
+``SemUAVEnv.step_env`` maps a discrete action index onto it (what the DDQN commands) and
+``SemUAVEnv.step`` adds gymnax's auto-reset. Everything is pure and jittable; the
+interface follows gymnax 0.0.8 (``step`` returns ``obs, state, reward, done, info``).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from semuav_jax import channel, kinematics, quality, spaces
+from semuav_jax.actions import action_to_accel
+from semuav_jax.observation import obs_size, observation
+from semuav_jax.params import EnvParams, make_params
+from semuav_jax.reward import reward
+
+
+@struct.dataclass
+class EnvState:
+    """State at the end of slot t (MODEL.md section 3)."""
+
+    q: jax.Array  # (2,) UAV ground position, m
+    v: jax.Array  # (2,) velocity, m/s
+    a_prev: jax.Array  # (2,) last command a[t] (clipped), still acting during the next delay
+    t: jax.Array  # slot index, int32
+    m: jax.Array  # (N,) symbols received, real-valued
+    phi: jax.Array  # (N,) PSNR of each device's image, dB
+    x: jax.Array  # (N,) bool, transmitted during slot t
+    dev_pos: jax.Array  # (N, 2) device positions
+    dev_img: jax.Array  # (N,) image index per device
+    delay: jax.Array  # command delay of slot t, s
+    arrived: jax.Array  # bool
+    done: jax.Array  # bool: arrived or t == K
+    ret: jax.Array  # return accumulated so far
+
+
+def initial_state(dev_pos, dev_img, params: EnvParams) -> EnvState:
+    """The state at t = 0 for a given layout: q = q0, v = a = 0, nothing received."""
+    N = dev_pos.shape[0]
+    return EnvState(
+        q=jnp.asarray(params.q0, jnp.float32),
+        v=jnp.zeros(2),
+        a_prev=jnp.zeros(2),
+        t=jnp.zeros((), jnp.int32),
+        m=jnp.zeros(N),
+        phi=quality.psnr(params.C, dev_img, jnp.zeros(N)),
+        x=jnp.zeros(N, bool),
+        dev_pos=dev_pos,
+        dev_img=dev_img,
+        delay=jnp.zeros(()),
+        arrived=jnp.zeros((), bool),
+        done=jnp.zeros((), bool),
+        ret=jnp.zeros(()),
+    )
+
+
+def sample_layout(key, params: EnvParams):
+    """Device positions uniform in the area and image indices uniform over C's rows (with replacement)."""
+    kp, ki = jax.random.split(key)
+    area = jnp.stack([params.Lx, params.Ly])
+    pos = jax.random.uniform(kp, (params.N, 2)) * area
+    img = jax.random.randint(ki, (params.N,), 0, params.C.shape[0])
+    return pos, img
+
+
+def reset_state(key, params: EnvParams) -> EnvState:
+    """Initial state: a fresh random layout, or the fixed one of ``params`` (MODEL.md section 1)."""
+    if params.layout == "fixed":
+        return initial_state(params.device_pos, params.device_img, params)
+    return initial_state(*sample_layout(key, params), params)
+
+
+def transition(key, state: EnvState, accel, params: EnvParams):
+    """One slot (MODEL.md section 3) under a continuous acceleration command.
+
+    Returns ``(state', reward)``. Once ``state.done`` the state is frozen and the reward is 0, so
+    no data is collected after the episode ends.
+    """
+    a = jnp.clip(accel, -params.a_max, params.a_max)
+    delay = kinematics.command_delay(key, state.q, params)
+    q, v = kinematics.move(state.q, state.v, state.a_prev, a, delay, params)
+    diff = state.dev_pos - q
+    r2 = jnp.sum(diff * diff, axis=-1)
+    # Eq. 3.5: 3-D range test and transmit set; eq. 3.6: equal OFDMA shares
+    x = (r2 + params.H * params.H <= params.D_com * params.D_com) & (state.m < params.M)
+    k = jnp.sum(x)
+    bandwidth = params.B / jnp.maximum(k, 1).astype(jnp.float32)
+    r = channel.rate(r2, params.H, params.P_n, bandwidth, params)
+    # Eq. 3.7: ordered latent, partial reception
+    m = jnp.minimum(float(params.M), state.m + jnp.where(x, r * (params.tau / params.beta), 0.0))
+    t = state.t + 1
+    arrived = jnp.sum((q - params.q_fin) ** 2) <= params.r_arr**2
+    new = state.replace(
+        q=q,
+        v=v,
+        a_prev=a,
+        t=t,
+        m=m,
+        phi=quality.psnr(params.C, state.dev_img, m),
+        x=x,
+        delay=delay,
+        arrived=arrived,
+        done=arrived | (t >= params.K),
+    )
+    rew = reward(state, new, params)
+    new = new.replace(ret=state.ret + rew)
+    frozen = jax.tree.map(lambda old, nxt: jnp.where(state.done, old, nxt), state, new)
+    return frozen, jnp.where(state.done, 0.0, rew)
+
+
+class SemUAVEnv:
+    """gymnax-style environment (gymnax 0.0.8 ``Environment`` interface) with a discrete action table."""
+
+    def __init__(self, params: EnvParams | None = None):
+        self._params = params
+
+    @property
+    def default_params(self) -> EnvParams:
+        if self._params is None:
+            self._params = make_params()
+        return self._params
+
+    @property
+    def name(self) -> str:
+        return "SemUAV-v0"
+
+    @property
+    def num_actions(self) -> int:
+        return self.default_params.num_actions
+
+    def action_space(self, params: EnvParams | None = None):
+        return spaces.Discrete((params or self.default_params).num_actions)
+
+    def observation_space(self, params: EnvParams | None = None):
+        params = params or self.default_params
+        return spaces.Box(-1.0, 1.0, (obs_size(params),), jnp.float32)
+
+    def get_obs(self, state: EnvState, params: EnvParams | None = None, key=None):
+        return observation(state, params or self.default_params)
+
+    def is_terminal(self, state: EnvState, params: EnvParams | None = None):
+        return state.done
+
+    def discount(self, state: EnvState, params: EnvParams | None = None):
+        return jnp.where(state.done, 0.0, 1.0)
+
+    def reset_env(self, key, params: EnvParams):
+        state = reset_state(key, params)
+        return observation(state, params), state
+
+    def step_env(self, key, state: EnvState, action, params: EnvParams):
+        new, rew = transition(key, state, action_to_accel(action, params), params)
+        info = {"discount": self.discount(new), "arrived": new.arrived, "delay": new.delay}
+        return observation(new, params), new, rew, new.done, info
+
+    def reset(self, key, params: EnvParams | None = None):
+        return self.reset_env(key, params or self.default_params)
+
+    def step(self, key, state: EnvState, action, params: EnvParams | None = None):
+        """gymnax ``step``: ``step_env`` then auto-reset on ``done`` (the reset uses a split key)."""
+        params = params or self.default_params
+        key, key_reset = jax.random.split(key)
+        obs_st, state_st, rew, done, info = self.step_env(key, state, action, params)
+        obs_re, state_re = self.reset_env(key_reset, params)
+        state = jax.tree.map(lambda r, s: jax.lax.select(done, r, s), state_re, state_st)
+        obs = jax.lax.select(done, obs_re, obs_st)
+        return obs, state, rew, done, info

@@ -1,0 +1,28 @@
+"""Episode metrics of MODEL.md section 8 (eq. 8.1 in docs/model.md)."""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from semuav_jax.params import EnvParams
+
+METRICS = ("mean_psnr", "coverage", "psnr_visited", "symbol_fraction", "arrived", "mission_time", "return")
+
+
+def episode_metrics(state, params: EnvParams) -> dict:
+    """Metrics of one finished episode from its final ``EnvState``.
+
+    psnr_visited is the mean PSNR over covered devices (m_n > 0); 0 when none is covered, so it
+    is never NaN (average it only over episodes with coverage > 0).
+    """
+    covered = state.m > 0
+    n_cov = jnp.sum(covered)
+    return {
+        "mean_psnr": jnp.mean(state.phi),
+        "coverage": n_cov,
+        "psnr_visited": jnp.sum(jnp.where(covered, state.phi, 0.0)) / jnp.maximum(n_cov, 1),
+        "symbol_fraction": jnp.mean(state.m) / params.M,
+        "arrived": state.arrived,
+        "mission_time": state.t * params.tau,
+        "return": state.ret,
+    }

@@ -1,0 +1,182 @@
+"""Environment parameters: every default of MODEL.md section 1 (and 2, 4, 6), with validation.
+
+Physical values are pytree leaves (traced, so a sweep over them is a ``vmap``); shapes and
+modes (``K``, ``M``, ``levels``, ``reward_mode``, ``layout``) are static fields. ``N`` is the
+first dimension of ``device_pos`` and the number of images is the first dimension of ``C``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from semuav_jax.curves import PSNRCurves, load_curves, validate_curves
+
+REWARD_MODES = ("paper", "gain")
+LAYOUTS = ("random", "fixed")
+
+
+@struct.dataclass
+class EnvParams:
+    """Parameters of one scenario (MODEL.md sections 1, 2, 4, 6); build with :func:`make_params`."""
+
+    C: jax.Array  # (images, M + 1) PSNR curves in dB, MODEL.md section 9
+    device_pos: jax.Array  # (N, 2) positions used by the fixed layout, metres
+    device_img: jax.Array  # (N,) image index per device used by the fixed layout
+    Lx: float = 1000.0
+    Ly: float = 600.0
+    tau: float = 0.5
+    H: float = 100.0
+    D_com: float = 105.0
+    P_n: float = 1e-3
+    noise: float = 1e-9
+    B: float = 20e3
+    q0: jax.Array = struct.field(default_factory=lambda: jnp.array([0.0, 300.0]))
+    q_fin: jax.Array = struct.field(default_factory=lambda: jnp.array([1000.0, 300.0]))
+    r_arr: float = 15.0
+    a_max: float = 5.0
+    v_max: float = 25.0
+    bs_pos: jax.Array = struct.field(default_factory=lambda: jnp.array([500.0, 300.0]))
+    bs_h: float = 25.0
+    P_b: float = 1.0
+    B_b: float = 100e3
+    L_cmd: float = 64.0
+    proc_max: float = 0.1
+    beta: float = 16.0
+    r_g: float = 500.0
+    P_miss: float = 500.0
+    kappa_d: float = 1.0
+    kappa_c: float = 1.0
+    eps: float = 1e-6
+    # Air-to-ground channel, urban (Al-Hourani 2014), MODEL.md section 2
+    los_a: float = 9.61
+    los_b: float = 0.16
+    eta_los: float = 1.0
+    eta_nlos: float = 20.0
+    f_c: float = 2e9
+    c: float = 3e8
+    # Static: shapes and modes
+    K: int = struct.field(pytree_node=False, default=250)
+    M: int = struct.field(pytree_node=False, default=256)
+    levels: int = struct.field(pytree_node=False, default=3)
+    reward_mode: str = struct.field(pytree_node=False, default="paper")
+    layout: str = struct.field(pytree_node=False, default="random")
+
+    @property
+    def N(self) -> int:
+        return self.device_pos.shape[-2]
+
+    @property
+    def num_actions(self) -> int:
+        return self.levels * self.levels
+
+
+def make_params(
+    curves: PSNRCurves | np.ndarray | None = None,
+    N: int = 10,
+    device_pos=None,
+    device_img=None,
+    **overrides,
+) -> EnvParams:
+    """Build and validate :class:`EnvParams`.
+
+    ``curves``: a :class:`PSNRCurves`, a bare array C, or None for the shipped DeepJSCC curves.
+    ``device_pos`` (N, 2) and ``device_img`` (N,) set the fixed layout (``layout="fixed"``); for
+    the random layout only their shape matters and they default to a placeholder of N devices.
+    """
+    if curves is None:
+        curves = load_curves()
+    C = curves.C if isinstance(curves, PSNRCurves) else np.asarray(curves)
+    validate_curves(C)
+    if "M" not in overrides:
+        overrides["M"] = C.shape[1] - 1
+    if device_pos is None:
+        if overrides.get("layout") == "fixed":
+            raise ValueError("layout='fixed' needs device_pos (N, 2) in metres")
+        device_pos = np.zeros((N, 2), np.float32)
+    device_pos = np.asarray(device_pos, np.float32)
+    if device_img is None:
+        device_img = np.arange(device_pos.shape[0]) % C.shape[0]
+    floats = {k: float(v) if np.ndim(v) == 0 and k not in _STATIC else v for k, v in overrides.items()}
+    for k in ("q0", "q_fin", "bs_pos"):
+        if k in floats:
+            floats[k] = jnp.asarray(floats[k], jnp.float32)
+    unknown = set(floats) - set(EnvParams.__dataclass_fields__)
+    if unknown:
+        raise ValueError(f"unknown parameter(s) {sorted(unknown)}")
+    params = EnvParams(
+        C=jnp.asarray(C, jnp.float32),
+        device_pos=jnp.asarray(device_pos),
+        device_img=jnp.asarray(device_img, jnp.int32),
+        **floats,
+    )
+    validate_params(params)
+    return params
+
+
+_STATIC = ("K", "M", "levels", "reward_mode", "layout")
+
+# (name, lower bound, inclusive?) for the positive scalars; checked on every entry of a sweep.
+_POSITIVE = (
+    "Lx", "Ly", "tau", "H", "P_n", "noise", "B", "r_arr", "a_max", "v_max",
+    "P_b", "B_b", "L_cmd", "beta", "f_c", "c",
+)
+_NON_NEGATIVE = ("proc_max", "bs_h", "r_g", "P_miss", "kappa_d", "kappa_c", "eps")
+
+
+def _concrete(x):
+    """The value of x as a NumPy array, or None while it is traced (validation runs outside jit)."""
+    if isinstance(x, jax.core.Tracer):
+        return None
+    return np.asarray(x)
+
+
+def validate_params(params: EnvParams) -> None:
+    """Raise ValueError naming the parameter and its allowed range (MODEL.md section 1)."""
+    if params.reward_mode not in REWARD_MODES:
+        raise ValueError(f"reward_mode must be one of {REWARD_MODES}, got {params.reward_mode!r}")
+    if params.layout not in LAYOUTS:
+        raise ValueError(f"layout must be one of {LAYOUTS}, got {params.layout!r}")
+    for name, value, lo in (("K", params.K, 1), ("M", params.M, 1), ("levels", params.levels, 2)):
+        if not isinstance(value, (int, np.integer)) or value < lo:
+            raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
+    vals = {k: _concrete(getattr(params, k)) for k in params.__dataclass_fields__ if k not in _STATIC}
+    for name, v in vals.items():
+        if v is not None and name not in ("device_img",) and not np.all(np.isfinite(v)):
+            raise ValueError(f"{name} must be finite, got {v}")
+    for name in _POSITIVE:
+        v = vals[name]
+        if v is not None and not np.all(v > 0):
+            raise ValueError(f"{name} must be > 0, got {v}")
+    for name in _NON_NEGATIVE:
+        v = vals[name]
+        if v is not None and not np.all(v >= 0):
+            raise ValueError(f"{name} must be >= 0, got {v}")
+    H, D = vals["H"], vals["D_com"]
+    if H is not None and D is not None and not np.all(D > H):
+        raise ValueError(
+            f"D_com must be > H (the 3-D range must exceed the altitude, or no device is ever in range), "
+            f"got D_com={D}, H={H}"
+        )
+    Lx, Ly = vals["Lx"], vals["Ly"]
+    if Lx is not None and Ly is not None:
+        for name in ("q0", "q_fin", "bs_pos", "device_pos"):
+            p = vals[name]
+            if p is None:
+                continue
+            if p.shape[-1] != 2:
+                raise ValueError(f"{name} must have a last dimension of 2 (x, y), got shape {p.shape}")
+            x, y = p[..., 0], p[..., 1]
+            if not (np.all((x >= 0) & (x <= Lx)) and np.all((y >= 0) & (y <= Ly))):
+                raise ValueError(f"{name} must lie inside the area [0, Lx] x [0, Ly] = [0, {Lx}] x [0, {Ly}], got {p}")
+    C = vals["C"]
+    if C is not None:
+        validate_curves(C, {"M": params.M}, where="C")
+        img = vals["device_img"]
+        if img is not None:
+            if img.shape[-1:] != params.device_pos.shape[-2:-1]:
+                raise ValueError(f"device_img must have shape (N,) = ({params.N},), got {img.shape}")
+            if not np.all((img >= 0) & (img < C.shape[-2])):
+                raise ValueError(f"device_img must index an image in [0, {C.shape[-2] - 1}], got {img}")

@@ -1,0 +1,66 @@
+"""Batched episodes: one ``lax.scan`` over the K slots, ``vmap`` over episodes, one compiled program.
+
+A policy is a pure function ``policy(policy_state, env_state, params) -> (acceleration, policy_state)``
+(MODEL.md section 7); discrete agents map their action through ``actions.action_to_accel``.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import Callable
+
+import jax
+import jax.numpy as jnp
+
+from semuav_jax.env import EnvState, reset_state, transition
+from semuav_jax.metrics import episode_metrics
+from semuav_jax.params import EnvParams, validate_params
+
+Policy = Callable
+
+TRACE_FIELDS = ("q", "v", "a_prev", "delay", "m", "phi", "x", "done")
+
+
+def random_policy(key, state: EnvState, params: EnvParams):
+    """Uniform acceleration in [-a_max, a_max]^2; its policy state is a key, constant over the episode."""
+    a = jax.random.uniform(jax.random.fold_in(key, state.t), (2,), minval=-1.0, maxval=1.0)
+    return a * params.a_max, key
+
+
+def episode(policy: Policy, key, params: EnvParams, policy_state=None, init_state=None, trace=False):
+    """One episode of K slots from ``init_state`` (or a reset with ``key``); returns (metrics, trace).
+
+    The trace (when asked) holds, per slot, the state fields of ``TRACE_FIELDS`` and the reward.
+    """
+    k_reset, k_steps = jax.random.split(key)
+    state = reset_state(k_reset, params) if init_state is None else init_state
+
+    def body(carry, t):
+        state, ps = carry
+        accel, ps = policy(ps, state, params)
+        state, rew = transition(jax.random.fold_in(k_steps, t), state, accel, params)
+        out = {f: getattr(state, f) for f in TRACE_FIELDS} | {"reward": rew} if trace else None
+        return (state, ps), out
+
+    (final, _), tr = jax.lax.scan(body, (state, policy_state), jnp.arange(params.K))
+    return episode_metrics(final, params), tr
+
+
+@partial(jax.jit, static_argnames=("policy", "trace"))
+def _rollout(policy, keys, params, policy_state, init_state, trace):
+    run = partial(episode, policy, params=params, trace=trace)
+    return jax.vmap(lambda k, ps, s0: run(k, policy_state=ps, init_state=s0))(keys, policy_state, init_state)
+
+
+def rollout(policy: Policy, keys, params: EnvParams, policy_state=None, init_state=None, trace=False):
+    """Run ``len(keys)`` episodes in one jitted, vmapped program.
+
+    ``policy_state`` and ``init_state`` (optional) carry a leading episode axis. Returns
+    ``(metrics, trace)``: a dict of (E,) arrays (MODEL.md section 8) and, with ``trace=True``,
+    a dict of (E, K, ...) per-slot arrays (else None). Parameters are validated first.
+    """
+    validate_params(params)
+    keys = jnp.asarray(keys)
+    if keys.ndim != 2 and not jax.dtypes.issubdtype(keys.dtype, jax.dtypes.prng_key):
+        raise ValueError(f"keys must be a batch of PRNG keys (E, 2), got shape {keys.shape}")
+    return _rollout(policy, keys, params, policy_state, init_state, trace)
