@@ -1,0 +1,103 @@
+"""Batched evaluation of any policy in the jitted, vmapped env (MODEL.md sections 7-8).
+
+``run`` is the shared path (baselines and the DDQN): E episodes, one compiled program, the
+metrics of MODEL.md section 8. ``baseline_metrics`` is a pure ``(keys, params, v_b, rank) ->
+metrics`` that vmaps over ``params.B`` and ``v_b`` without recompiling; ``sweep`` does exactly
+that for a grid. TSP ranks come from OR-Tools outside jit (``tsp_ranks``).
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from baselines import tsp as tsp_solver
+from baselines.policies import DEFAULT_V_B, POLICIES, init_state
+from semuav_jax.env import reset_state
+from semuav_jax.params import EnvParams, validate_params
+from semuav_jax.rollout import episode
+
+
+def resolve(policy):
+    """A policy function from a name of ``POLICIES`` or the function itself."""
+    if callable(policy):
+        return policy
+    if policy not in POLICIES:
+        raise ValueError(f"unknown baseline {policy!r}; choose one of {sorted(POLICIES)} or pass a policy function")
+    return POLICIES[policy]
+
+
+@jax.jit
+def layouts(keys, params: EnvParams):
+    """Device positions (E, N, 2) of the episodes run with ``keys`` (the same reset key split as ``episode``)."""
+    return jax.vmap(lambda k: reset_state(jax.random.split(k)[0], params).dev_pos)(keys)
+
+
+def tsp_ranks(keys, params: EnvParams, time_limit_ms: int = tsp_solver.DEFAULT_TIME_LIMIT_MS, workers: int = 2):
+    """Rank (E, N) of each device in the OR-Tools open path q0 -> devices -> q_fin of each episode."""
+    pos = np.asarray(layouts(keys, params))
+    q0, q_fin = np.asarray(params.q0), np.asarray(params.q_fin)
+    if params.layout == "fixed":
+        order = tsp_solver.solve_order(pos[0], q0, q_fin, time_limit_ms)
+        orders = np.broadcast_to(order, pos.shape[:2])
+    else:
+        orders = tsp_solver.solve_orders(pos, q0, q_fin, time_limit_ms, workers)
+    return np.argsort(orders, axis=-1).astype(np.int32)
+
+
+@partial(jax.jit, static_argnames=("policy", "state_axes"))
+def run(policy, keys, params: EnvParams, policy_state, state_axes=0):
+    """Metrics (dict of (E,) arrays, MODEL.md section 8) of ``policy`` over the episodes ``keys``.
+
+    ``policy_state`` has a leading episode axis, or none with ``state_axes=None`` (e.g. shared
+    network weights).
+    """
+    return jax.vmap(lambda k, ps: episode(policy, k, params, policy_state=ps)[0], in_axes=(0, state_axes))(
+        keys, policy_state
+    )
+
+
+def baseline_metrics(policy, keys, params: EnvParams, v_b, rank):
+    """Pure metrics of a baseline at speed ``v_b`` (traced); vmap it over ``v_b`` or ``params.B``."""
+    states = jax.vmap(init_state, in_axes=(None, 0))(v_b, rank)
+    return run(resolve(policy), keys, params, states)
+
+
+def _ranks(policy, keys, params, rank, **tsp_kwargs):
+    if rank is not None:
+        return jnp.asarray(rank, jnp.int32)
+    if policy == "tsp" or policy is POLICIES["tsp"]:
+        return jnp.asarray(tsp_ranks(keys, params, **tsp_kwargs))
+    return jnp.broadcast_to(jnp.arange(params.N, dtype=jnp.int32), (len(keys), params.N))
+
+
+def evaluate(policy, keys, params: EnvParams, v_b=DEFAULT_V_B, rank=None, **tsp_kwargs) -> dict:
+    """Metrics (dict of (E,) NumPy arrays) of a baseline over the episodes ``keys``.
+
+    ``policy`` is a name of ``POLICIES`` or a baseline function; the TSP ranks are solved here
+    unless ``rank`` (E, N) is given (``tsp_kwargs`` go to :func:`tsp_ranks`).
+    """
+    validate_params(params)
+    rank = _ranks(policy, keys, params, rank, **tsp_kwargs)
+    return jax.tree.map(np.asarray, baseline_metrics(resolve(policy), keys, params, jnp.float32(v_b), rank))
+
+
+@partial(jax.jit, static_argnames=("policy",))
+def _sweep(policy, keys, params, v_b, B, rank):
+    at_b = lambda b: jax.vmap(lambda v: baseline_metrics(policy, keys, params.replace(B=b), v, rank))(v_b)
+    return jax.vmap(at_b)(B)
+
+
+def sweep(policy, keys, params: EnvParams, v_b=(DEFAULT_V_B,), B=None, rank=None, **tsp_kwargs) -> dict:
+    """Metrics (dict of (len(B), len(v_b), E) arrays) over a bandwidth x speed grid, one compiled program.
+
+    ``B`` defaults to ``params.B``; every point uses the same episodes (layouts, delays, seeds).
+    """
+    validate_params(params)
+    rank = _ranks(policy, keys, params, rank, **tsp_kwargs)
+    B = jnp.atleast_1d(jnp.asarray(params.B if B is None else B, jnp.float32))
+    v_b = jnp.atleast_1d(jnp.asarray(v_b, jnp.float32))
+    return jax.tree.map(np.asarray, _sweep(resolve(policy), keys, params, v_b, B, rank))

@@ -1,0 +1,98 @@
+"""TSP visiting order of MODEL.md section 7: the shortest open path q0 -> all devices -> q_fin.
+
+Solved with OR-Tools routing (one vehicle, fixed start and end node, integer distances in
+centimetres, guided local search under a time limit) outside jit, one layout at a time. Large
+batches are split over worker processes that run this file as a script (it imports no JAX, and
+unlike a multiprocessing pool it needs no ``__main__`` guard in the caller and never forks JAX).
+"""
+
+from __future__ import annotations
+
+import io
+import subprocess
+import sys
+
+import numpy as np
+from ortools.constraint_solver import pywrapcp, routing_enums_pb2
+
+SCALE = 100.0  # integer arc costs in centimetres
+DEFAULT_TIME_LIMIT_MS = 50
+PARALLEL_MIN_LAYOUTS = 64
+
+
+def distance_matrix(dev_pos, q0, q_fin) -> np.ndarray:
+    """Euclidean distances between the nodes [q0, p_1..p_N, q_fin] (metres)."""
+    nodes = np.concatenate([np.asarray(q0, float)[None], np.asarray(dev_pos, float), np.asarray(q_fin, float)[None]])
+    return np.linalg.norm(nodes[:, None] - nodes[None], axis=-1)
+
+
+def path_length(order, dev_pos, q0, q_fin) -> float:
+    """Length (metres) of the open path q0 -> devices in ``order`` -> q_fin."""
+    pts = np.concatenate([np.asarray(q0, float)[None], np.asarray(dev_pos, float)[list(order)], np.asarray(q_fin, float)[None]])
+    return float(np.linalg.norm(np.diff(pts, axis=0), axis=-1).sum())
+
+
+def solve_order(dev_pos, q0, q_fin, time_limit_ms: int = DEFAULT_TIME_LIMIT_MS) -> np.ndarray:
+    """Device indices (N,) in visiting order of the shortest open path from q0 to q_fin."""
+    n = len(dev_pos)
+    if n <= 1:
+        return np.arange(n)
+    cost = np.rint(distance_matrix(dev_pos, q0, q_fin) * SCALE).astype(np.int64)
+    manager = pywrapcp.RoutingIndexManager(n + 2, 1, [0], [n + 1])
+    model = pywrapcp.RoutingModel(manager)
+    arc = model.RegisterTransitMatrix(cost.tolist())
+    model.SetArcCostEvaluatorOfAllVehicles(arc)
+    search = pywrapcp.DefaultRoutingSearchParameters()
+    search.first_solution_strategy = routing_enums_pb2.FirstSolutionStrategy.PATH_CHEAPEST_ARC
+    search.local_search_metaheuristic = routing_enums_pb2.LocalSearchMetaheuristic.GUIDED_LOCAL_SEARCH
+    search.time_limit.FromMilliseconds(int(time_limit_ms))
+    solution = model.SolveWithParameters(search)
+    if solution is None:
+        raise RuntimeError("OR-Tools found no route (status %d)" % model.status())
+    order, index = [], solution.Value(model.NextVar(model.Start(0)))
+    while not model.IsEnd(index):
+        order.append(manager.IndexToNode(index) - 1)
+        index = solution.Value(model.NextVar(index))
+    return np.asarray(order, np.int32)
+
+
+def _solve_batch(dev_pos, q0, q_fin, time_limit_ms) -> np.ndarray:
+    return np.stack([solve_order(p, q0, q_fin, time_limit_ms) for p in dev_pos]).reshape(len(dev_pos), -1)
+
+
+def solve_orders(
+    dev_pos, q0, q_fin, time_limit_ms: int = DEFAULT_TIME_LIMIT_MS, workers: int = 2
+) -> np.ndarray:
+    """Visiting orders (E, N) for a batch of layouts ``dev_pos`` (E, N, 2).
+
+    Batches of at least ``PARALLEL_MIN_LAYOUTS`` layouts are split over ``workers`` processes
+    (``python tsp.py``, arrays through stdin/stdout); nothing is cached.
+    """
+    dev_pos = np.asarray(dev_pos, float)
+    q0, q_fin = np.asarray(q0, float), np.asarray(q_fin, float)
+    if workers <= 1 or len(dev_pos) < PARALLEL_MIN_LAYOUTS:
+        return _solve_batch(dev_pos, q0, q_fin, time_limit_ms)
+    procs = []
+    for chunk in np.array_split(dev_pos, workers):
+        proc = subprocess.Popen([sys.executable, __file__], stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+        buf = io.BytesIO()
+        np.savez(buf, dev_pos=chunk, q0=q0, q_fin=q_fin, time_limit_ms=time_limit_ms)
+        proc.stdin.write(buf.getvalue())
+        proc.stdin.close()
+        procs.append(proc)
+    outs = [proc.stdout.read() for proc in procs]
+    for proc in procs:
+        if proc.wait() != 0:
+            raise RuntimeError(f"TSP worker failed with exit code {proc.returncode}")
+    return np.concatenate([np.load(io.BytesIO(out)) for out in outs])
+
+
+def _worker() -> None:
+    """Solve the batch of an npz on stdin; write the orders as .npy to stdout."""
+    data = np.load(io.BytesIO(sys.stdin.buffer.read()))
+    orders = _solve_batch(data["dev_pos"], data["q0"], data["q_fin"], int(data["time_limit_ms"]))
+    np.save(sys.stdout.buffer, orders)
+
+
+if __name__ == "__main__":
+    _worker()
