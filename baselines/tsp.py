@@ -32,23 +32,31 @@ def path_length(order, dev_pos, q0, q_fin) -> float:
     return float(np.linalg.norm(np.diff(pts, axis=0), axis=-1).sum())
 
 
+def _search(time_limit_ms):
+    """Cheapest-arc start, then guided local search for ``time_limit_ms`` (None: default local search, no limit)."""
+    search = pywrapcp.DefaultRoutingSearchParameters()
+    search.first_solution_strategy = routing_enums_pb2.FirstSolutionStrategy.PATH_CHEAPEST_ARC
+    if time_limit_ms is not None:
+        search.local_search_metaheuristic = routing_enums_pb2.LocalSearchMetaheuristic.GUIDED_LOCAL_SEARCH
+        search.time_limit.FromMilliseconds(int(time_limit_ms))
+    return search
+
+
 def solve_order(dev_pos, q0, q_fin, time_limit_ms: int = DEFAULT_TIME_LIMIT_MS) -> np.ndarray:
     """Device indices (N,) in visiting order of the shortest open path from q0 to q_fin."""
     n = len(dev_pos)
     if n <= 1:
-        return np.arange(n)
+        return np.arange(n, dtype=np.int32)
     cost = np.rint(distance_matrix(dev_pos, q0, q_fin) * SCALE).astype(np.int64)
     manager = pywrapcp.RoutingIndexManager(n + 2, 1, [0], [n + 1])
     model = pywrapcp.RoutingModel(manager)
     arc = model.RegisterTransitMatrix(cost.tolist())
     model.SetArcCostEvaluatorOfAllVehicles(arc)
-    search = pywrapcp.DefaultRoutingSearchParameters()
-    search.first_solution_strategy = routing_enums_pb2.FirstSolutionStrategy.PATH_CHEAPEST_ARC
-    search.local_search_metaheuristic = routing_enums_pb2.LocalSearchMetaheuristic.GUIDED_LOCAL_SEARCH
-    search.time_limit.FromMilliseconds(int(time_limit_ms))
-    solution = model.SolveWithParameters(search)
+    solution = model.SolveWithParameters(_search(time_limit_ms))
+    if solution is None:  # no first solution within the limit (a loaded machine): plain local search
+        solution = model.SolveWithParameters(_search(None))
     if solution is None:
-        raise RuntimeError("OR-Tools found no route (status %d)" % model.status())
+        raise RuntimeError(f"OR-Tools found no route (status {model.status()})")
     order, index = [], solution.Value(model.NextVar(model.Start(0)))
     while not model.IsEnd(index):
         order.append(manager.IndexToNode(index) - 1)
