@@ -69,14 +69,16 @@ def load_curves(path: str | os.PathLike | None = None) -> PSNRCurves:
         raise FileNotFoundError(f"PSNR curves file not found: {path}{hint}")
     try:
         with np.load(path, allow_pickle=False) as f:
-            if "C" not in f.files or "meta" not in f.files:
-                raise ValueError(f"{path}: a curves file needs entries 'C' and 'meta', found {sorted(f.files)}")
-            C = f["C"]
-            meta = json.loads(str(f["meta"]))
-    except ValueError:
-        raise
-    except Exception as e:  # a truncated zip, bad JSON, not an npz at all
+            entries = {k: f[k] for k in f.files}
+    except Exception as e:  # not a zip, truncated, pickled objects
         raise ValueError(f"{path}: not a readable curves file ({type(e).__name__}: {e})") from e
+    if "C" not in entries or "meta" not in entries:
+        raise ValueError(f"{path}: a curves file needs entries 'C' and 'meta', found {sorted(entries)}")
+    try:
+        meta = json.loads(str(entries["meta"]))
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{path}: the 'meta' entry is not valid JSON ({e})") from e
+    C = entries["C"]
     validate_curves(C, meta, where=str(path))
     return PSNRCurves(C=C.astype(np.float32), meta=meta)
 

@@ -74,22 +74,33 @@ def reset_state(key, params: EnvParams) -> EnvState:
     return initial_state(*sample_layout(key, params), params)
 
 
+def bandwidth_shares(x, B):
+    """Eq. 3.6: OFDMA splits B equally among the k transmitting devices, B_n = B / max(k, 1) (0 if silent)."""
+    return jnp.where(x, B / jnp.maximum(jnp.sum(x), 1).astype(jnp.float32), 0.0)
+
+
 def transition(key, state: EnvState, accel, params: EnvParams):
     """One slot (MODEL.md section 3) under a continuous acceleration command.
 
     Returns ``(state', reward)``. Once ``state.done`` the state is frozen and the reward is 0, so
-    no data is collected after the episode ends.
+    no data is collected after the episode ends. The key draws the processing delay (eq. 3.1).
+    """
+    return transition_u(jax.random.uniform(key), state, accel, params)
+
+
+def transition_u(u, state: EnvState, accel, params: EnvParams):
+    """``transition`` given the slot's uniform draw u ~ U(0, 1) of the processing delay.
+
+    ``rollout`` draws all K of an episode at once, outside the slot loop (faster on CPU).
     """
     a = jnp.clip(accel, -params.a_max, params.a_max)
-    delay = kinematics.command_delay(key, state.q, params)
+    delay = kinematics.command_delay(u, state.q, params)
     q, v = kinematics.move(state.q, state.v, state.a_prev, a, delay, params)
     diff = state.dev_pos - q
     r2 = jnp.sum(diff * diff, axis=-1)
-    # Eq. 3.5: 3-D range test and transmit set; eq. 3.6: equal OFDMA shares
+    # Eq. 3.5: 3-D range test and transmit set
     x = (r2 + params.H * params.H <= params.D_com * params.D_com) & (state.m < params.M)
-    k = jnp.sum(x)
-    bandwidth = params.B / jnp.maximum(k, 1).astype(jnp.float32)
-    r = channel.rate(r2, params.H, params.P_n, bandwidth, params)
+    r = channel.rate(r2, params.H, params.P_n, bandwidth_shares(x, params.B), params)
     # Eq. 3.7: ordered latent, partial reception
     m = jnp.minimum(float(params.M), state.m + jnp.where(x, r * (params.tau / params.beta), 0.0))
     t = state.t + 1

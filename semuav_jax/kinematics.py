@@ -9,13 +9,11 @@ from semuav_jax import channel
 from semuav_jax.params import EnvParams
 
 
-def command_delay(key, q_prev, params: EnvParams):
-    """Eq. 3.1: delay = min(tau, proc + L_cmd / R_b(q[t-1])), proc ~ U(0, proc_max)."""
+def command_delay(u, q_prev, params: EnvParams):
+    """Eq. 3.1: delay = min(tau, proc + L_cmd / R_b(q[t-1])), proc = u proc_max with u ~ U(0, 1)."""
     d = q_prev - params.bs_pos
     r_b = channel.rate(d[0] * d[0] + d[1] * d[1], params.H - params.bs_h, params.P_b, params.B_b, params)
-    proc = jax.random.uniform(key, (), minval=0.0, maxval=params.proc_max)
-    return jnp.minimum(params.tau, proc + params.L_cmd / r_b)
-
+    return jnp.minimum(params.tau, u * params.proc_max + params.L_cmd / r_b)
 
 def move(q, v, a_prev, a_new, delay, params: EnvParams):
     """Eqs. 3.2-3.4: delayed acceleration, speed cap, integration and geofence.

@@ -12,7 +12,7 @@ from typing import Callable
 import jax
 import jax.numpy as jnp
 
-from semuav_jax.env import EnvState, reset_state, transition
+from semuav_jax.env import EnvState, reset_state, transition_u
 from semuav_jax.metrics import episode_metrics
 from semuav_jax.params import EnvParams, validate_params
 
@@ -21,10 +21,19 @@ Policy = Callable
 TRACE_FIELDS = ("q", "v", "a_prev", "delay", "m", "phi", "x", "done")
 
 
-def random_policy(key, state: EnvState, params: EnvParams):
-    """Uniform acceleration in [-a_max, a_max]^2; its policy state is a key, constant over the episode."""
-    a = jax.random.uniform(jax.random.fold_in(key, state.t), (2,), minval=-1.0, maxval=1.0)
-    return a * params.a_max, key
+def random_policy_state(key, params: EnvParams):
+    """The random policy's state: its K commands, drawn up front, uniform in [-1, 1]^2 (times a_max)."""
+    return jax.random.uniform(key, (params.K, 2), minval=-1.0, maxval=1.0)
+
+
+def random_policy(draws, state: EnvState, params: EnvParams):
+    """Uniform acceleration in [-a_max, a_max]^2, the draw of slot t from ``random_policy_state``."""
+    return draws[jnp.minimum(state.t, params.K - 1)] * params.a_max, draws
+
+
+def delay_draws(key, params: EnvParams):
+    """The K uniform draws of an episode's processing delays (eq. 3.1), slot t using entry t."""
+    return jax.random.uniform(key, (params.K,))
 
 
 def episode(policy: Policy, key, params: EnvParams, policy_state=None, init_state=None, trace=False):
@@ -35,14 +44,14 @@ def episode(policy: Policy, key, params: EnvParams, policy_state=None, init_stat
     k_reset, k_steps = jax.random.split(key)
     state = reset_state(k_reset, params) if init_state is None else init_state
 
-    def body(carry, t):
+    def body(carry, u):
         state, ps = carry
         accel, ps = policy(ps, state, params)
-        state, rew = transition(jax.random.fold_in(k_steps, t), state, accel, params)
+        state, rew = transition_u(u, state, accel, params)
         out = {f: getattr(state, f) for f in TRACE_FIELDS} | {"reward": rew} if trace else None
         return (state, ps), out
 
-    (final, _), tr = jax.lax.scan(body, (state, policy_state), jnp.arange(params.K))
+    (final, _), tr = jax.lax.scan(body, (state, policy_state), delay_draws(k_steps, params))
     return episode_metrics(final, params), tr
 
 

@@ -1,0 +1,124 @@
+"""Baselines inside the compiled, vmapped env (MODEL.md sections 7-8): arrival, command bound, sweeps."""
+
+from functools import partial
+
+import chex
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from baselines.evaluate import evaluate, layouts, sweep, tsp_ranks
+from baselines.policies import POLICIES, greedy, init_state, straight, tsp
+from baselines.tsp import solve_orders
+from semuav_jax.env import initial_state, reset_state, transition
+
+V_B = 8.9
+
+
+@partial(jax.jit, static_argnames="policy")
+def _flights(policy, keys, params, s0, rank):
+    """Episodes as in ``rollout.episode``, also returning the largest raw command of each episode."""
+
+    def one(key, s, r):
+        k_steps = jax.random.split(key)[1]
+
+        def body(carry, t):
+            s, ps, amax = carry
+            a, ps = policy(ps, s, params)
+            s, _ = transition(jax.random.fold_in(k_steps, t), s, a, params)
+            return (s, ps, jnp.maximum(amax, jnp.max(jnp.abs(a)))), None
+
+        (s, _, amax), _ = jax.lax.scan(body, (s, init_state(V_B, r), 0.0), jnp.arange(params.K))
+        return s.arrived, jnp.sum(s.m > 0), amax
+
+    return jax.vmap(one)(keys, s0, rank)
+
+
+def _hand_layouts():
+    on_line = np.stack([np.linspace(90.0, 910.0, 10), np.full(10, 300.0)], -1)
+    # (500, 0) needs a 1166 m detour = 131 s > 125 s at 8.9 m/s: never feasible, 300 m off the route
+    one_off = on_line.copy()
+    one_off[4] = [500.0, 0.0]
+    return np.stack([on_line, one_off])
+
+
+@pytest.fixture(scope="module")
+def flights(params):
+    keys = jax.random.split(jax.random.PRNGKey(2024), 1002)
+    s0 = jax.vmap(lambda k: reset_state(jax.random.split(k)[0], params))(keys[:1000])
+    hand = jnp.asarray(_hand_layouts(), jnp.float32)
+    s_hand = jax.vmap(lambda p: initial_state(p, jnp.zeros(10, jnp.int32), params))(hand)
+    s0 = jax.tree.map(lambda a, b: jnp.concatenate([a, b]), s0, s_hand)
+    rank = np.concatenate([
+        tsp_ranks(keys[:1000], params, time_limit_ms=10),
+        np.argsort(solve_orders(_hand_layouts(), params.q0, params.q_fin), axis=1),
+    ])
+    out = {}
+    for name, policy in POLICIES.items():
+        out[name] = jax.tree.map(np.asarray, _flights(policy, keys, params, s0, jnp.asarray(rank, jnp.int32)))
+    return out
+
+
+@pytest.mark.parametrize("name", sorted(POLICIES))
+def test_every_baseline_arrives_on_99_percent_of_1000_layouts(flights, name):
+    arrived, _, _ = flights[name]
+    assert arrived[:1000].mean() >= 0.99, arrived[:1000].mean()
+
+
+@pytest.mark.parametrize("name", sorted(POLICIES))
+def test_no_command_exceeds_a_max(flights, name, params):
+    _, _, amax = flights[name]
+    assert np.all(amax <= params.a_max)
+    assert np.all(amax == params.a_max)  # every flight starts from rest with a saturated command
+
+
+@pytest.mark.parametrize("name", sorted(POLICIES))
+def test_hand_layouts_coverage(flights, name):
+    arrived, coverage, _ = flights[name]
+    # ten devices on the route: all covered; the infeasible device 300 m off the route: never
+    np.testing.assert_array_equal(coverage[1000:], [10, 9])
+    assert np.all(arrived[1000:])
+
+
+def test_greedy_and_tsp_cover_more_than_straight(flights):
+    cov = {k: v[1][:1000].mean() for k, v in flights.items()}
+    assert cov["greedy"] > cov["straight"] + 1 and cov["tsp"] > cov["straight"] + 1, cov
+
+
+def counted(policy):
+    """The policy wrapped so that chex fails on a second trace."""
+    return chex.assert_max_traces(lambda ps, s, p: policy(ps, s, p), n=1)
+
+
+@pytest.mark.parametrize("policy", [greedy, tsp, straight], ids=["greedy", "tsp", "straight"])
+def test_bandwidth_x_velocity_sweep_is_one_program(policy, params):
+    keys = jax.random.split(jax.random.PRNGKey(7), 24)
+    rank = tsp_ranks(keys, params, time_limit_ms=20)
+    chex.clear_trace_counter()
+    fn = counted(policy)
+    B = [5e3, 10e3, 20e3, 40e3]
+    m = sweep(fn, keys, params, v_b=[4.0, 8.9, 16.0, 24.0], B=B, rank=rank)
+    m2 = sweep(fn, keys, params, v_b=[6.0, 8.9, 12.0, 20.0], B=B, rank=rank)  # new values, no retrace
+    assert m["mean_psnr"].shape == (4, 4, 24)
+    np.testing.assert_array_equal(m["mean_psnr"][:, 1], m2["mean_psnr"][:, 1])
+    psnr = m["mean_psnr"].mean(-1)
+    assert np.all(np.diff(psnr[:, 1]) > 0), psnr[:, 1]  # rises with bandwidth at 8.9 m/s
+    assert np.all(np.diff(psnr, axis=0) >= 0)  # never falls, at any speed
+    # 1000 m at 4 m/s takes 250 s > T = 125 s: no arrival, the mission lasts all K slots
+    assert not m["arrived"][:, 0].any() and np.all(m["mission_time"][:, 0] == 125.0)
+    # the same flights at every bandwidth (B does not change the trajectory)
+    np.testing.assert_array_equal(m["mission_time"][0], m["mission_time"][-1])
+    if policy is straight:
+        # 985 m to the arrival circle at v_b, plus v_b / (2 a_max) lost accelerating from rest, to one slot
+        for j, v_b in ((1, 8.9), (3, 24.0)):
+            expected = 985.0 / v_b + v_b / (2 * params.a_max)
+            np.testing.assert_allclose(m["mission_time"][0, j], expected, atol=params.tau)
+
+
+def test_evaluate_matches_sweep_point(params):
+    keys = jax.random.split(jax.random.PRNGKey(3), 4)
+    a = evaluate("straight", keys, params, v_b=24.0)
+    b = sweep("straight", keys, params, v_b=[8.9, 24.0])
+    for k in a:
+        np.testing.assert_allclose(a[k], b[k][0, 1], rtol=1e-6)
