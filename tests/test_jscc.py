@@ -1,0 +1,147 @@
+"""DeepJSCC (MODEL.md section 9): channel pieces, training, curves file and the shipped curves."""
+
+import pickle
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from semuav_jax.curves import default_curves_path, load_curves, save_curves
+from semuav_jax.jscc import M, power_normalize, prefix_mask, quantize_iq, truncate
+from semuav_jax.jscc import data
+from semuav_jax.jscc.__main__ import main
+from semuav_jax.jscc.evaluate import default_model_path, load_model, sha256_file
+from semuav_jax.jscc.model import DeepJSCC, latent_to_symbols, symbols_to_latent
+from semuav_jax.jscc.train import TrainConfig, train
+
+
+def _complex(key, shape):
+    a, b = jax.random.split(key)
+    return 3.0 * jax.random.normal(a, shape) + 1j * jax.random.normal(b, shape)
+
+
+def test_power_normalization_unit_average_power():
+    s = power_normalize(_complex(jax.random.PRNGKey(0), (5, M)))
+    np.testing.assert_allclose(np.mean(np.abs(s) ** 2, axis=1), 1.0, rtol=1e-5)
+
+
+def test_truncation_zeroes_exactly_the_tail_and_renormalizes():
+    s = power_normalize(_complex(jax.random.PRNGKey(1), (4, M)))
+    k = jnp.array([0, 1, 100, M])
+    t = np.asarray(truncate(s, k))
+    for row, kk in zip(t, np.asarray(k)):
+        assert np.all(row[kk:] == 0)
+        assert np.all(row[:kk] != 0)
+        if kk:
+            np.testing.assert_allclose(np.mean(np.abs(row[:kk]) ** 2), 1.0, rtol=1e-5)
+    assert np.asarray(prefix_mask(k)).sum(axis=1).tolist() == [0, 1, 100, M]
+
+
+def test_latent_is_channel_major_and_invertible():
+    z = jax.random.normal(jax.random.PRNGKey(2), (2, 8, 8, 8))
+    s = latent_to_symbols(z)
+    assert s.shape == (2, M)
+    np.testing.assert_allclose(s[0, 0], z[0, 0, 0, 0] + 1j * z[0, 0, 1, 0])
+    np.testing.assert_allclose(s[0, 32], z[0, 0, 0, 1] + 1j * z[0, 0, 1, 1])
+    np.testing.assert_allclose(symbols_to_latent(s), z)
+
+
+def test_quantizer_is_8_bit_and_clips():
+    x = jnp.linspace(-6.0, 6.0, 10001)
+    q = np.asarray(quantize_iq(x + 1j * x))
+    assert len(np.unique(q.real)) == 256
+    assert q.real.min() == pytest.approx(-4.0) and q.real.max() == pytest.approx(4.0)
+    inside = np.abs(np.asarray(x)) <= 4
+    assert np.max(np.abs(q.real - np.asarray(x))[inside]) <= 4.0 / 255 + 1e-6
+
+
+def test_short_training_lowers_loss_and_resume_is_exact(tmp_path):
+    photos = [data.builtin_test_set()[0][i] for i in range(6)]
+    cfg = TrainConfig(steps=40, batch=8, width=8, lr=3e-3)
+    x = np.stack(photos)
+    net = DeepJSCC(cfg.width)
+
+    def loss(params):
+        y = net.apply({"params": params}, x, jnp.full((6,), M), jax.random.PRNGKey(0), cfg.snr_db)
+        return float(jnp.mean((y - x) ** 2))
+
+    from semuav_jax.jscc.train import init_params
+
+    before = loss(init_params(cfg))
+    params, _ = train(cfg, photos, out=tmp_path / "a", progress=False)
+    assert loss(params) < 0.7 * before
+    train(cfg, photos, out=tmp_path / "b", minutes=1e-9, progress=False)
+    resumed, _ = train(cfg, photos, out=tmp_path / "b", resume=True, progress=False)
+    for a, b in zip(jax.tree_util.tree_leaves(params), jax.tree_util.tree_leaves(resumed)):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_curves_roundtrip_with_metadata(tmp_path):
+    C = np.linspace(10, 30, 2 * 5, dtype=np.float32).reshape(2, 5)
+    meta = {"image_shape": [32, 32, 3], "ratio": "1/6", "test_images": ["a", "b"]}
+    p = save_curves(tmp_path / "c.npz", C, meta)
+    cv = load_curves(p)
+    np.testing.assert_array_equal(cv.C, C)
+    assert cv.meta == {**meta, "M": 4}
+
+
+def test_bad_curves_files_raise_value_error(tmp_path):
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, C=np.zeros((3,), np.float32), meta=np.array('{"M": 2}'))
+    with pytest.raises(ValueError):
+        load_curves(bad)
+    corrupt = tmp_path / "corrupt.npz"
+    corrupt.write_bytes(default_curves_path().read_bytes()[:200])
+    with pytest.raises(ValueError):
+        load_curves(corrupt)
+
+
+def test_bad_inputs_give_clear_errors(tmp_path, capsys):
+    with pytest.raises(ValueError, match="no image files"):
+        data.folder_photos(tmp_path)
+    with pytest.raises(ValueError, match="CIFAR-10"):
+        data.cifar10_images(tmp_path)
+    (tmp_path / "x.png").write_bytes(b"not a png")
+    with pytest.raises(ValueError, match="cannot read"):
+        data.folder_photos(tmp_path)
+    with pytest.raises(ValueError):
+        load_model(tmp_path / "x.png")
+    assert main(["curves", "--ckpt", str(tmp_path / "none"), "--out", str(tmp_path / "c.npz")]) == 2
+    assert main(["train", "--out", str(tmp_path / "t"), "--steps", "0"]) == 2
+    assert "error:" in capsys.readouterr().err
+
+
+def test_cifar10_loader(tmp_path):
+    rng = np.random.default_rng(0)
+    for name in ["test_batch"]:
+        with open(tmp_path / name, "wb") as f:
+            pickle.dump({b"data": rng.integers(0, 256, (7, 3072), dtype=np.uint8)}, f)
+    x = data.cifar10_images(tmp_path, test=True)
+    assert x.shape == (7, 32, 32, 3) and x.dtype == np.float32 and 0 <= x.min() <= x.max() <= 1
+
+
+def test_test_set_is_held_out():
+    x, names = data.builtin_test_set()
+    assert x.shape == (64, 32, 32, 3) and len(set(names)) == 64
+    held_out = {n.split(".")[0] for n in data.SKIMAGE_TEST + data.SKLEARN_TEST}
+    trained = {n.split(".")[0] for n in data.SKIMAGE_TRAIN + data.SKLEARN_TRAIN}
+    assert {n.split("@")[0] for n in names} <= held_out and not held_out & trained
+
+
+def test_shipped_curves_meet_acceptance():
+    cv = load_curves()
+    assert cv.M == M == cv.meta["M"] and cv.num_images == cv.meta["num_test_images"] >= 32
+    assert np.all(np.isfinite(cv.C))
+    mean = cv.C.mean(axis=0)
+    assert np.all(np.diff(mean) >= -0.05)
+    span = mean[M] - mean[0]
+    assert span >= 12.0
+    assert mean[M // 4] - mean[0] >= 0.6 * span
+    assert mean[M] >= 27.0
+    for key in ("image_shape", "ratio", "bits_per_symbol", "train_snr_db", "dataset", "model_hash"):
+        assert key in cv.meta
+    assert cv.meta["bits_per_symbol"] == 16
+    assert cv.meta["model_hash"] == sha256_file(default_model_path())
+    net, params = load_model()
+    assert isinstance(net, DeepJSCC)
