@@ -1,0 +1,76 @@
+"""Greedy (epsilon = 0) evaluation of a trained DDQN and paired comparison with the baselines.
+
+Episodes run through the baselines' shared evaluation path (``baselines.evaluate.run``: one
+jitted, vmapped program, MODEL.md section 8 metrics) when the ``baselines`` package is present,
+else through ``semuav_jax.rollout.episode`` directly; both use the same per-episode keys.
+"""
+
+from __future__ import annotations
+
+import functools
+from functools import partial
+
+import jax
+import numpy as np
+
+from semuav_jax.actions import action_to_accel
+from semuav_jax.observation import observation
+from semuav_jax.params import EnvParams, validate_params
+from semuav_jax.rollout import episode
+
+try:
+    import baselines.evaluate as _baselines
+except ImportError:  # the agent does not need the baselines to be evaluated
+    _baselines = None
+
+
+@functools.lru_cache(maxsize=None)
+def greedy_policy(network):
+    """Rollout policy ``(net_params, env_state, params) -> (accel, net_params)``: argmax Q of the observation."""
+
+    def policy(net_params, state, params: EnvParams):
+        a = jax.numpy.argmax(network.apply(net_params, observation(state, params)))
+        return action_to_accel(a, params), net_params
+
+    return policy
+
+
+@partial(jax.jit, static_argnames=("policy",))
+def _run(policy, keys, params, net_params):
+    return jax.vmap(lambda k: episode(policy, k, params, policy_state=net_params)[0])(keys)
+
+
+def evaluate_agent(network, net_params, keys, params: EnvParams) -> dict:
+    """Metrics (dict of (E,) NumPy arrays) of the greedy policy of ``net_params`` on episodes ``keys``."""
+    validate_params(params)
+    policy = greedy_policy(network)
+    if _baselines is not None:
+        out = _baselines.run(policy, keys, params, net_params, state_axes=None)
+    else:
+        out = _run(policy, keys, params, net_params)
+    return jax.tree.map(np.asarray, out)
+
+
+def mean_ci(x, z: float = 1.96):
+    """Mean and half-width of its normal-approximation 95 % confidence interval."""
+    x = np.asarray(x, np.float64)
+    return float(x.mean()), float(z * x.std(ddof=1) / np.sqrt(len(x))) if len(x) > 1 else 0.0
+
+
+def compare(network, net_params, keys, params: EnvParams, baselines=("greedy", "tsp"), v_b=None) -> dict:
+    """Mean PSNR of the agent and of each baseline on the same episodes, with paired margins.
+
+    Returns ``{name: {"mean_psnr": (mean, ci95)}, "margin_vs_<b>": (mean, ci95)}``; the margin is
+    the per-episode difference agent - baseline (same layout, delays and images). Baselines are
+    skipped when the ``baselines`` package is absent.
+    """
+    agent = evaluate_agent(network, net_params, keys, params)
+    out = {"ddqn": {k: mean_ci(agent[k]) for k in ("mean_psnr", "coverage", "arrived", "mission_time")}}
+    if _baselines is None:
+        return out
+    v_b = _baselines.DEFAULT_V_B if v_b is None else v_b
+    for b in baselines:
+        m = _baselines.evaluate(b, keys, params, v_b=v_b)
+        out[b] = {k: mean_ci(m[k]) for k in ("mean_psnr", "coverage", "arrived", "mission_time")}
+        out[f"margin_vs_{b}"] = mean_ci(agent["mean_psnr"] - m["mean_psnr"])
+    return out
