@@ -1,4 +1,4 @@
-"""DeepJSCC PSNR curves C[i, k]: the quality lookup of MODEL.md section 9 (eq. Q1 in docs/model.md).
+"""DeepJSCC PSNR curves C[i, k]: the quality lookup of MODEL.md section 9 (eq. 9.1 in docs/model.md).
 
 A curves file is an ``.npz`` with two entries: ``C`` (float32, images x (M+1), PSNR in dB of
 test image i decoded from its first k symbols) and ``meta`` (a JSON string with at least ``M``).
