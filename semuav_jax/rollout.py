@@ -55,21 +55,24 @@ def episode(policy: Policy, key, params: EnvParams, policy_state=None, init_stat
     return episode_metrics(final, params), tr
 
 
-@partial(jax.jit, static_argnames=("policy", "trace"))
-def _rollout(policy, keys, params, policy_state, init_state, trace):
+@partial(jax.jit, static_argnames=("policy", "trace", "state_axes"))
+def _rollout(policy, keys, params, policy_state, init_state, trace, state_axes):
     run = partial(episode, policy, params=params, trace=trace)
-    return jax.vmap(lambda k, ps, s0: run(k, policy_state=ps, init_state=s0))(keys, policy_state, init_state)
+    return jax.vmap(lambda k, ps, s0: run(k, policy_state=ps, init_state=s0), in_axes=(0, state_axes, 0))(
+        keys, policy_state, init_state
+    )
 
 
-def rollout(policy: Policy, keys, params: EnvParams, policy_state=None, init_state=None, trace=False):
+def rollout(policy: Policy, keys, params: EnvParams, policy_state=None, init_state=None, trace=False, state_axes=0):
     """Run ``len(keys)`` episodes in one jitted, vmapped program.
 
-    ``policy_state`` and ``init_state`` (optional) carry a leading episode axis. Returns
-    ``(metrics, trace)``: a dict of (E,) arrays (MODEL.md section 8) and, with ``trace=True``,
-    a dict of (E, K, ...) per-slot arrays (else None). Parameters are validated first.
+    ``policy_state`` carries a leading episode axis, or is shared by all episodes with
+    ``state_axes=None`` (e.g. network weights); ``init_state`` (optional) has an episode axis.
+    Returns ``(metrics, trace)``: a dict of (E,) arrays (MODEL.md section 8) and, with
+    ``trace=True``, a dict of (E, K, ...) per-slot arrays (else None). Parameters are validated first.
     """
     validate_params(params)
     keys = jnp.asarray(keys)
     if keys.ndim != 2 and not jax.dtypes.issubdtype(keys.dtype, jax.dtypes.prng_key):
         raise ValueError(f"keys must be a batch of PRNG keys (E, 2), got shape {keys.shape}")
-    return _rollout(policy, keys, params, policy_state, init_state, trace)
+    return _rollout(policy, keys, params, policy_state, init_state, trace, state_axes)
