@@ -28,7 +28,6 @@ os.environ["XLA_FLAGS"] = (
 
 import jax  # noqa: E402  (XLA_FLAGS must be set first)
 import numpy as np  # noqa: E402
-from jax.sharding import Mesh, NamedSharding, PartitionSpec  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from conftest import synthetic_curves  # noqa: E402
@@ -37,6 +36,7 @@ from reference_numpy import NumpyEnv, params_dict  # noqa: E402
 from semuav_jax.params import make_params  # noqa: E402
 from semuav_jax.rollout import random_policy, random_policy_state, rollout  # noqa: E402
 from semuav_jax.curves import load_curves  # noqa: E402
+from semuav_jax.sharding import shard_episodes  # noqa: E402
 
 
 def curves():
@@ -46,12 +46,10 @@ def curves():
         return synthetic_curves(32)
 
 
-def jax_steps_per_s(params, n_envs, mesh):
+def jax_steps_per_s(params, n_envs):
     keys = jax.random.split(jax.random.key(0), n_envs)
     draws = jax.vmap(random_policy_state, (0, None))(jax.random.split(jax.random.key(1), n_envs), params)
-    if n_envs % mesh.size == 0:
-        sharding = NamedSharding(mesh, PartitionSpec("envs"))
-        keys, draws = jax.device_put(keys, sharding), jax.device_put(draws, sharding)
+    keys, draws = shard_episodes((keys, draws))  # pads 1 env to one per device: count only n_envs
     t0 = time.perf_counter()
     jax.block_until_ready(rollout(random_policy, keys, params, policy_state=draws))
     compile_s = time.perf_counter() - t0
@@ -76,11 +74,10 @@ def numpy_steps_per_s(params):
 
 def main():
     params = make_params(curves())
-    mesh = Mesh(np.array(jax.devices()), ("envs",))
     rows = []
     print(f"{'envs':>7} {'steps/s':>14} {'compile s':>10}")
     for n in args.envs:
-        sps, comp = jax_steps_per_s(params, n, mesh)
+        sps, comp = jax_steps_per_s(params, n)
         rows.append({"envs": n, "steps_per_s": sps, "compile_s": comp})
         print(f"{n:>7} {sps:>14,.0f} {comp:>10.1f}")
     np_sps = numpy_steps_per_s(params)
