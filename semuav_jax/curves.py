@@ -7,13 +7,15 @@ test image i decoded from its first k symbols) and ``meta`` (a JSON string with 
 from __future__ import annotations
 
 import dataclasses
+import io
 import json
 import os
-import tempfile
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
+
+from semuav_jax.io import atomic_write
 
 DEFAULT_CURVES = "psnr_curves.npz"
 REQUIRED_META = ("M",)
@@ -84,19 +86,10 @@ def load_curves(path: str | os.PathLike | None = None) -> PSNRCurves:
 
 
 def save_curves(path: str | os.PathLike, C, meta: dict) -> Path:
-    """Write a curves file atomically (temp file + rename) after validating it."""
+    """Write a curves file atomically after validating it."""
     C = np.asarray(C, dtype=np.float32)
     meta = {**meta, "M": int(C.shape[1] - 1)}
     validate_curves(C, meta, where=str(path))
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz.tmp")
-    os.close(fd)
-    try:
-        with open(tmp, "wb") as f:
-            np.savez(f, C=C, meta=np.array(json.dumps(meta, sort_keys=True)))
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-    return path
+    buf = io.BytesIO()
+    np.savez(buf, C=C, meta=np.array(json.dumps(meta, sort_keys=True)))
+    return atomic_write(path, buf.getvalue())
