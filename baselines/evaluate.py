@@ -18,7 +18,7 @@ from baselines import tsp as tsp_solver
 from baselines.policies import DEFAULT_V_B, POLICIES, init_state
 from semuav_jax.env import reset_state
 from semuav_jax.params import EnvParams, validate_params
-from semuav_jax.rollout import episode
+from semuav_jax.rollout import rollout
 
 
 def resolve(policy):
@@ -48,16 +48,14 @@ def tsp_ranks(keys, params: EnvParams, time_limit_ms: int = tsp_solver.DEFAULT_T
     return np.argsort(orders, axis=-1).astype(np.int32)
 
 
-@partial(jax.jit, static_argnames=("policy", "state_axes"))
-def run(policy, keys, params: EnvParams, policy_state, state_axes=0):
+def run(policy, keys, params: EnvParams, policy_state, state_axes=0, init_state=None):
     """Metrics (dict of (E,) arrays, MODEL.md section 8) of ``policy`` over the episodes ``keys``.
 
     ``policy_state`` has a leading episode axis, or none with ``state_axes=None`` (e.g. shared
-    network weights).
+    network weights); ``init_state`` (optional, episode axis) replaces the reset. Pure and
+    traceable: one ``semuav_jax.rollout`` program, so it can sit inside a ``vmap``.
     """
-    return jax.vmap(lambda k, ps: episode(policy, k, params, policy_state=ps)[0], in_axes=(0, state_axes))(
-        keys, policy_state
-    )
+    return rollout(policy, keys, params, policy_state, init_state=init_state, state_axes=state_axes)[0]
 
 
 def baseline_metrics(policy, keys, params: EnvParams, v_b, rank):

@@ -11,7 +11,8 @@ import pytest
 from baselines.evaluate import evaluate, sweep, tsp_ranks
 from baselines.policies import POLICIES, greedy, init_state, straight, tsp
 from baselines.tsp import solve_orders
-from semuav_jax.env import initial_state, reset_state, transition
+from semuav_jax.env import initial_state, reset_state, transition_u
+from semuav_jax.rollout import delay_draws
 
 V_B = 8.9
 
@@ -23,13 +24,14 @@ def _flights(policy, keys, params, s0, rank):
     def one(key, s, r):
         k_steps = jax.random.split(key)[1]
 
-        def body(carry, t):
+        def body(carry, u):
             s, ps, amax = carry
             a, ps = policy(ps, s, params)
-            s, _ = transition(jax.random.fold_in(k_steps, t), s, a, params)
+            s, _ = transition_u(u, s, a, params)
             return (s, ps, jnp.maximum(amax, jnp.max(jnp.abs(a)))), None
 
-        (s, _, amax), _ = jax.lax.scan(body, (s, init_state(V_B, r), 0.0), jnp.arange(params.K))
+        carry = (s, init_state(V_B, r), 0.0)
+        (s, _, amax), _ = jax.lax.scan(body, carry, delay_draws(k_steps, params))
         return s.arrived, jnp.sum(s.m > 0), amax
 
     return jax.vmap(one)(keys, s0, rank)
