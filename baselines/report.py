@@ -18,17 +18,11 @@ import numpy as np
 from baselines.evaluate import sweep, tsp_ranks
 from baselines.policies import DEFAULT_V_B, POLICIES
 from baselines.tsp import DEFAULT_TIME_LIMIT_MS
-from semuav_jax.curves import load_curves
+from semuav_jax.curves import load_curves, synthetic_curves
 from semuav_jax.params import make_params
 
 BANDWIDTHS = (5e3, 10e3, 20e3, 40e3)
 SPEEDS = (4.0, DEFAULT_V_B, 14.0, 20.0, 24.0)
-
-
-def synthetic_curves(images: int = 8, M: int = 256) -> np.ndarray:
-    """Monotone stand-in curves (the formula of tests/conftest.py): 10 dB at k = 0 to about 30 dB at k = M."""
-    k = np.arange(M + 1)
-    return np.stack([10.0 + (20.0 + i) * (1.0 - np.exp(-k / (40.0 + 5 * i))) for i in range(images)]).astype(np.float32)
 
 
 def _summary(m: dict) -> dict:

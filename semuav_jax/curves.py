@@ -93,3 +93,11 @@ def save_curves(path: str | os.PathLike, C, meta: dict) -> Path:
     buf = io.BytesIO()
     np.savez(buf, C=C, meta=np.array(json.dumps(meta, sort_keys=True)))
     return atomic_write(path, buf.getvalue())
+
+
+def synthetic_curves(images: int = 8, M: int = 256) -> np.ndarray:
+    """Monotone stand-in curves for tests and quick experiments, NOT DeepJSCC's: 10 dB at k = 0
+    rising to about 30 dB at k = M, a little different per image."""
+    k = np.arange(M + 1)
+    rows = [10.0 + (20.0 + i) * (1.0 - np.exp(-k / (40.0 + 5 * i))) for i in range(images)]
+    return np.stack(rows).astype(np.float32)
