@@ -26,7 +26,7 @@ from flax import struct
 from semuav_jax.actions import action_to_accel
 from semuav_jax.env import reset_state, transition
 from semuav_jax.metrics import episode_metrics
-from semuav_jax.observation import obs_size, observation
+from semuav_jax.observation import DEVICE_FEATURES, GLOBAL_FEATURES, obs_size, observation
 from semuav_jax.params import EnvParams
 
 
@@ -50,6 +50,7 @@ class DDQNConfig:
     reward_scale: float = 0.01
     max_grad_norm: float = 10.0
     hidden: tuple = (128, 128, 64)
+    sorted_devices: bool = True
 
     def __post_init__(self):
         ints = ("num_envs", "total_steps", "steps_per_chunk", "updates_per_step", "batch_size",
@@ -94,14 +95,40 @@ class DDQNConfig:
         return cls(**{**d, "hidden": tuple(d["hidden"])})
 
 
+NEAR_GAIN = 20.0  # tanh(20 x): resolves tens of metres in area-normalized offsets
+
+
+def agent_features(obs):
+    """The Q-network's input: the observation (MODEL.md section 5) made permutation-invariant.
+
+    Device blocks are sorted nearest first (the device index carries no meaning on random
+    layouts), and every relative offset (devices and goal) gets a companion ``tanh(20 x)`` that
+    resolves the ~32 m communication radius, which the area normalization squeezes to ~0.03.
+    A fixed, parameter-free transform; works on one observation or a batch.
+    """
+    glob, dev = obs[..., :GLOBAL_FEATURES], obs[..., GLOBAL_FEATURES:]
+    dev = dev.reshape(dev.shape[:-1] + (-1, DEVICE_FEATURES))
+    order = jnp.argsort(jnp.sum(dev[..., :2] ** 2, axis=-1), axis=-1)
+    dev = jnp.take_along_axis(dev, order[..., None], axis=-2)
+    dev = jnp.concatenate([dev, jnp.tanh(NEAR_GAIN * dev[..., :2])], axis=-1)
+    near_goal = jnp.tanh(NEAR_GAIN * glob[..., GLOBAL_FEATURES - 2:])
+    return jnp.concatenate([glob, near_goal, dev.reshape(dev.shape[:-2] + (-1,))], axis=-1)
+
+
 class QNetwork(nn.Module):
-    """MLP 128-128-64 with ReLU and one linear output per action (the paper's Q-network)."""
+    """MLP 128-128-64 with ReLU and one linear output per action (the paper's Q-network).
+
+    With ``sorted_devices`` the observation first goes through :func:`agent_features`.
+    """
 
     num_actions: int
     hidden: tuple = (128, 128, 64)
+    sorted_devices: bool = True
 
     @nn.compact
     def __call__(self, x):
+        if self.sorted_devices:
+            x = agent_features(x)
         for h in self.hidden:
             x = nn.relu(nn.Dense(h)(x))
         return nn.Dense(self.num_actions)(x)
@@ -202,7 +229,7 @@ class Trainer(NamedTuple):
 
 def make_train(config: DDQNConfig, env_params: EnvParams) -> Trainer:
     """Build the pure training functions for one agent; ``jax.vmap(trainer.train)(keys)`` trains seeds."""
-    network = QNetwork(env_params.num_actions, tuple(config.hidden))
+    network = QNetwork(env_params.num_actions, tuple(config.hidden), config.sorted_devices)
     tx = optax.chain(optax.clip_by_global_norm(config.max_grad_norm), optax.adam(config.lr))
     n_act = env_params.num_actions
     E = config.num_envs
@@ -307,12 +334,3 @@ def make_train(config: DDQNConfig, env_params: EnvParams) -> Trainer:
 
     return Trainer(config=config, network=network, init=init, run=run, train=train, q_values=q_values)
 
-
-def greedy_policy(network: QNetwork):
-    """A rollout policy (``rollout.rollout`` signature) whose policy_state is the network params: epsilon = 0."""
-
-    def policy(net_params, state, params: EnvParams):
-        a = jnp.argmax(network.apply(net_params, observation(state, params)))
-        return action_to_accel(a, params), net_params
-
-    return policy

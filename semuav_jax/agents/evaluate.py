@@ -19,7 +19,7 @@ from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import episode
 
 try:
-    import baselines.evaluate as _baselines
+    import baselines as _baselines
 except ImportError:  # the agent does not need the baselines to be evaluated
     _baselines = None
 

@@ -1,0 +1,241 @@
+"""Train the DDQN at the BS (docs/ddqn.md): ``python train.py`` runs the paper's default setting.
+
+The training itself is one compiled program per segment (``semuav_jax.agents.ddqn``); this
+script only splits it into a few host-level segments for progress, checkpoints and resume,
+then evaluates the greedy policy against the greedy and TSP baselines.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+DEFAULTS = {"scenario": "fixed", "reward_mode": "gain", "bandwidth": 20e3}
+CONFIG_FILE, METRICS_FILE, CKPT_FILE, MODEL_FILE = "config.json", "metrics.csv", "checkpoint.msgpack", "model.msgpack"
+METRIC_COLUMNS = ("seed", "chunk", "env_steps", "epsilon", "episodes", "loss", "mean_psnr", "return", "arrived", "coverage")
+
+
+class UsageError(Exception):
+    """A bad option or run folder: reported as one line, exit code 2."""
+
+
+def parse_args(argv=None):
+    from semuav_jax.agents.ddqn import DDQNConfig
+
+    d = DDQNConfig()
+    p = argparse.ArgumentParser(description="Train the semantic-aware UAV DDQN (docs/ddqn.md).")
+    p.add_argument("--scenario", choices=("fixed", "random"), default=DEFAULTS["scenario"],
+                   help="fixed paper layout or a new random layout per episode (default: %(default)s)")
+    p.add_argument("--reward-mode", choices=("paper", "gain"), default=DEFAULTS["reward_mode"],
+                   help="reward of MODEL.md section 4 (default: %(default)s)")
+    p.add_argument("--bandwidth", type=float, default=DEFAULTS["bandwidth"], help="device uplink band B in Hz")
+    p.add_argument("--total-steps", type=int, default=d.total_steps, help="environment steps, summed over envs")
+    p.add_argument("--seeds", type=int, default=1, help="independent agents trained in one program")
+    p.add_argument("--seed", type=int, default=0, help="base random seed")
+    p.add_argument("--num-envs", type=int, default=d.num_envs)
+    p.add_argument("--batch-size", type=int, default=d.batch_size)
+    p.add_argument("--gamma", type=float, default=d.gamma)
+    p.add_argument("--lr", type=float, default=d.lr)
+    p.add_argument("--steps-per-chunk", type=int, default=d.steps_per_chunk, help="vmapped env steps per chunk")
+    p.add_argument("--learning-starts", type=int, default=d.learning_starts, help="random transitions before learning")
+    p.add_argument("--segments", type=int, default=10, help="host-level segments (progress + checkpoint each)")
+    p.add_argument("--max-segments", type=int, default=None,
+                   help="stop after this many segments in this session (continue later with --resume)")
+    p.add_argument("--eval-episodes", type=int, default=512, help="greedy-policy evaluation episodes (0: skip)")
+    p.add_argument("--curves", type=str, default=None, help="PSNR curves .npz (default: the shipped DeepJSCC curves)")
+    p.add_argument("--out", type=str, default=None, help="run folder (default: runs/ddqn_<scenario>_<reward-mode>)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
+    g.add_argument("--overwrite", action="store_true", help="delete the contents of an existing --out first")
+    args = p.parse_args(argv)
+    if args.out is None:
+        args.out = f"runs/ddqn_{args.scenario}_{args.reward_mode}"
+    for name in ("seeds", "segments", "max_segments"):
+        if getattr(args, name) is not None and getattr(args, name) < 1:
+            raise UsageError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
+    if args.eval_episodes < 0:
+        raise UsageError(f"--eval-episodes must be >= 0, got {args.eval_episodes}")
+    return args
+
+
+def atomic_write(path: Path, data: bytes) -> None:
+    """Write ``data`` to a temporary file in the same folder, then ``os.replace`` it onto ``path``."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def run_config(args) -> dict:
+    """The JSON-able description of a run (written to config.json; read back on --resume)."""
+    from semuav_jax.agents.ddqn import DDQNConfig
+
+    cfg = DDQNConfig(total_steps=args.total_steps, num_envs=args.num_envs, batch_size=args.batch_size,
+                     gamma=args.gamma, lr=args.lr, steps_per_chunk=args.steps_per_chunk,
+                     learning_starts=args.learning_starts)
+    return {"scenario": args.scenario, "reward_mode": args.reward_mode, "bandwidth": args.bandwidth,
+            "seeds": args.seeds, "seed": args.seed, "segments": args.segments, "curves": args.curves,
+            "ddqn": cfg.to_dict()}
+
+
+def load_run_config(args) -> dict:
+    """The run's config: read back from the run folder on --resume, else built from the options."""
+    out = Path(args.out)
+    if args.resume:
+        if not (out / CONFIG_FILE).is_file() or not (out / CKPT_FILE).is_file():
+            raise UsageError(f"--resume: no {CONFIG_FILE} and {CKPT_FILE} in {out}")
+        return json.loads((out / CONFIG_FILE).read_text())
+    return run_config(args)
+
+
+def prepare_folder(args, cfg: dict) -> None:
+    """Create the run folder and write config.json; refuse a non-empty one without --resume / --overwrite."""
+    if args.resume:
+        return
+    out = Path(args.out)
+    if out.exists() and any(out.iterdir()):
+        if not args.overwrite:
+            raise UsageError(
+                f"run folder {out} exists and is not empty; pass --resume to continue it or --overwrite to replace it"
+            )
+        for f in out.iterdir():
+            if f.is_file():
+                f.unlink()
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write(out / CONFIG_FILE, json.dumps(cfg, indent=2).encode())
+
+
+def plot_curves(rows, path: Path, reference: dict | None = None) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+    for seed in sorted({r["seed"] for r in rows}):
+        rs = [r for r in rows if r["seed"] == seed]
+        x = [r["env_steps"] for r in rs]
+        axes[0].plot(x, [r["mean_psnr"] for r in rs], label=f"seed {seed}")
+        axes[1].plot(x, [r["return"] for r in rs])
+    for name, value in (reference or {}).items():
+        axes[0].axhline(value, ls="--", color="gray")
+        axes[0].annotate(name, (0, value), fontsize=8, color="gray")
+    axes[0].set(xlabel="environment steps", ylabel="mean PSNR of finished episodes (dB)", title="training (ε-greedy)")
+    axes[1].set(xlabel="environment steps", ylabel="episode return")
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path.with_suffix(".tmp.png"), dpi=110)
+    plt.close(fig)
+    os.replace(path.with_suffix(".tmp.png"), path)
+
+
+def segment_lengths(num_chunks: int, segments: int, done: int):
+    """Chunks per remaining segment: equal lengths (one compilation) plus at most one remainder."""
+    seg = -(-num_chunks // segments)
+    left = num_chunks - done
+    return [seg] * (left // seg) + ([left % seg] if left % seg else [])
+
+
+def main(argv=None) -> int:
+    try:
+        args = parse_args(argv)
+        cfg = load_run_config(args)
+    except (UsageError, ValueError) as e:
+        print(f"train.py: error: {e}", file=sys.stderr)
+        return 2
+
+    import jax
+    import numpy as np
+    from flax import serialization
+    from tqdm import tqdm
+
+    from semuav_jax.agents.ddqn import DDQNConfig, make_train
+    from semuav_jax.agents.evaluate import compare
+    from semuav_jax.agents.scenarios import scenario_params
+    from semuav_jax.curves import load_curves
+
+    out = Path(args.out)
+    try:
+        curves = load_curves(cfg["curves"]) if cfg["curves"] else None
+        params = scenario_params(cfg["scenario"], curves, reward_mode=cfg["reward_mode"], B=cfg["bandwidth"])
+        config = DDQNConfig.from_dict(cfg["ddqn"])
+        prepare_folder(args, cfg)
+    except (UsageError, ValueError, FileNotFoundError) as e:
+        print(f"train.py: error: {e}", file=sys.stderr)
+        return 2
+
+    trainer = make_train(config, params)
+    keys = jax.random.split(jax.random.PRNGKey(cfg["seed"]), cfg["seeds"])
+    init = jax.jit(jax.vmap(trainer.init))
+    template = jax.eval_shape(init, keys)
+    if args.resume:
+        state = serialization.from_bytes(template, (out / CKPT_FILE).read_bytes())
+        with open(out / METRICS_FILE, newline="") as f:
+            rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
+        print(f"resuming {out} at chunk {int(np.asarray(state.chunk)[0])} / {config.num_chunks}")
+    else:
+        state, rows = None, []
+
+    t0 = time.time()
+    if state is None:
+        state = init(keys)
+    done = int(np.asarray(state.chunk)[0])
+    runs = {}
+    bar = tqdm(total=config.num_chunks, initial=done, unit="chunk", desc="training", dynamic_ncols=True)
+    for n in segment_lengths(config.num_chunks, cfg["segments"], done)[: args.max_segments]:
+        if n not in runs:
+            runs[n] = jax.jit(jax.vmap(lambda s, n=n: trainer.run(s, n)))
+        state, metrics = runs[n](state)
+        metrics = jax.tree.map(np.asarray, metrics)
+        for s in range(cfg["seeds"]):
+            for c in range(n):
+                rows.append({"seed": s, "chunk": done + c + 1, **{k: float(metrics[k][s, c]) for k in METRIC_COLUMNS[2:]}})
+        done += n
+        atomic_write(out / CKPT_FILE, serialization.to_bytes(state))
+        with open(out / (METRICS_FILE + ".tmp"), "w", newline="") as f:
+            w = csv.DictWriter(f, METRIC_COLUMNS)
+            w.writeheader()
+            w.writerows({k: r[k] for k in METRIC_COLUMNS} for r in rows)
+        os.replace(out / (METRICS_FILE + ".tmp"), out / METRICS_FILE)
+        plot_curves(rows, out / "learning_curve.png")
+        bar.set_postfix(psnr=f"{metrics['mean_psnr'][:, -1].mean():.2f}", eps=f"{metrics['epsilon'][0, -1]:.2f}")
+        bar.update(n)
+    bar.close()
+    if done < config.num_chunks:
+        print(f"stopped at chunk {done} / {config.num_chunks}; continue with --resume --out {out}")
+        return 0
+    wall = time.time() - t0
+    atomic_write(out / MODEL_FILE, serialization.to_bytes(state.params))
+    print(f"training: {config.num_chunks * config.steps_per_chunk * config.num_envs * cfg['seeds']:,} env steps "
+          f"in {wall:.0f} s (this session)")
+
+    if args.eval_episodes:
+        eval_keys = jax.random.split(jax.random.PRNGKey(10_000 + cfg["seed"]), args.eval_episodes)
+        report = {"eval_episodes": args.eval_episodes, "train_wall_s": wall, "seeds": []}
+        for s in range(cfg["seeds"]):
+            net = jax.tree.map(lambda x: x[s], state.params)
+            res = compare(trainer.network, net, eval_keys, params)
+            report["seeds"].append(res)
+            line = "  ".join(f"{k} {v['mean_psnr'][0]:.2f}±{v['mean_psnr'][1]:.2f}" for k, v in res.items()
+                             if isinstance(v, dict))
+            margins = "  ".join(f"{k} {v[0]:+.2f}±{v[1]:.2f}" for k, v in res.items() if k.startswith("margin"))
+            print(f"seed {s}: mean PSNR (dB, 95% CI)  {line}  {margins}")
+        atomic_write(out / "eval.json", json.dumps(report, indent=2).encode())
+        ref = {k: v["mean_psnr"][0] for k, v in report["seeds"][0].items() if isinstance(v, dict) and k != "ddqn"}
+        plot_curves(rows, out / "learning_curve.png", ref)
+    print(f"run folder: {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
