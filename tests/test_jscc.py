@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from semuav_jax.curves import default_curves_path, load_curves, save_curves
+from semuav_jax.curves import load_curves, save_curves
 from semuav_jax.jscc import M, power_normalize, prefix_mask, quantize_iq, truncate
 from semuav_jax.jscc import data
 from semuav_jax.jscc.__main__ import main
@@ -59,6 +59,8 @@ def test_quantizer_is_8_bit_and_clips():
 def test_short_training_lowers_loss_and_resume_is_exact(tmp_path):
     photos = [data.builtin_test_set()[0][i] for i in range(6)]
     cfg = TrainConfig(steps=40, batch=8, width=8, lr=3e-3)
+    from semuav_jax.jscc.train import init_params, load_config
+
     x = np.stack(photos)
     net = DeepJSCC(cfg.width)
 
@@ -66,13 +68,12 @@ def test_short_training_lowers_loss_and_resume_is_exact(tmp_path):
         y = net.apply({"params": params}, x, jnp.full((6,), M), jax.random.PRNGKey(0), cfg.snr_db)
         return float(jnp.mean((y - x) ** 2))
 
-    from semuav_jax.jscc.train import init_params
-
     before = loss(init_params(cfg))
     params, _ = train(cfg, photos, out=tmp_path / "a", progress=False)
     assert loss(params) < 0.7 * before
-    train(cfg, photos, out=tmp_path / "b", minutes=1e-9, progress=False)
-    resumed, _ = train(cfg, photos, out=tmp_path / "b", resume=True, progress=False)
+    train(cfg, photos, out=tmp_path / "b", minutes=1e-9, progress=False, log_every=10)
+    assert load_config(tmp_path / "b")[1]["step"] == 10
+    resumed, _ = train(cfg, photos, out=tmp_path / "b", resume=True, progress=False, log_every=10)
     for a, b in zip(jax.tree_util.tree_leaves(params), jax.tree_util.tree_leaves(resumed)):
         np.testing.assert_array_equal(a, b)
 
@@ -92,7 +93,8 @@ def test_bad_curves_files_raise_value_error(tmp_path):
     with pytest.raises(ValueError):
         load_curves(bad)
     corrupt = tmp_path / "corrupt.npz"
-    corrupt.write_bytes(default_curves_path().read_bytes()[:200])
+    save_curves(tmp_path / "good.npz", np.zeros((2, 5), np.float32), {})
+    corrupt.write_bytes((tmp_path / "good.npz").read_bytes()[:200])
     with pytest.raises(ValueError):
         load_curves(corrupt)
 

@@ -1,0 +1,92 @@
+"""Command line for the DeepJSCC of MODEL.md section 9: train, curves, figure.
+
+    python -m semuav_jax.jscc train --out runs/jscc --steps 4000
+    python -m semuav_jax.jscc curves --ckpt runs/jscc --out semuav_jax/data/psnr_curves.npz
+    python -m semuav_jax.jscc figure --out docs/figures/deepjscc.png
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from semuav_jax.jscc.train import TrainConfig
+
+
+def _train(a) -> None:
+    from semuav_jax.jscc import data
+    from semuav_jax.jscc.train import load_config, train
+
+    if a.images and a.cifar10:
+        raise ValueError("give at most one of --images and --cifar10")
+    if a.images:
+        photos = data.folder_photos(a.images)
+    elif a.cifar10:
+        photos = list(data.cifar10_images(a.cifar10))
+    else:
+        photos = data.builtin_train_photos()
+    if a.resume:
+        cfg, _ = load_config(a.out)
+    else:
+        cfg = TrainConfig(steps=a.steps, batch=a.batch, lr=a.lr, snr_db=a.snr_db, width=a.width, seed=a.seed)
+    if a.minutes is not None and not a.minutes > 0:
+        raise ValueError(f"--minutes must be positive, got {a.minutes}")
+    _, history = train(cfg, photos, out=a.out, resume=a.resume, minutes=a.minutes)
+    if history:
+        step, loss, secs = history[-1]
+        print(f"step {step}/{cfg.steps}, loss {loss:.5f}, {secs / 60:.1f} min total; checkpoint in {a.out}")
+
+
+def _curves(a) -> None:
+    from semuav_jax.jscc.evaluate import write_curves
+
+    path, C, meta = write_curves(a.ckpt, a.out, model_out=a.model_out)
+    print(f"wrote {path}: {C.shape[0]} test images, M = {meta['M']}")
+    for frac in ("0", "1/4", "1/2", "1"):
+        print(f"  mean PSNR at k = {frac} M: {meta['mean_psnr_db'][frac]:.2f} dB")
+
+
+def _figure(a) -> None:
+    from semuav_jax.jscc.evaluate import make_figure
+
+    print(f"wrote {make_figure(a.out, model=a.model, curves=a.curves)}")
+
+
+def main(argv=None) -> int:
+    d = TrainConfig()
+    p = argparse.ArgumentParser(prog="python -m semuav_jax.jscc", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="cmd", required=True)
+    t = sub.add_parser("train", help="train (or resume) the DeepJSCC; checkpoints in --out")
+    t.add_argument("--out", required=True, help="checkpoint directory")
+    t.add_argument("--steps", type=int, default=d.steps, help="total steps (fixes the lr schedule)")
+    t.add_argument("--minutes", type=float, default=None, help="stop (and checkpoint) after this wall-clock time")
+    t.add_argument("--resume", action="store_true", help="continue the run saved in --out")
+    t.add_argument("--batch", type=int, default=d.batch)
+    t.add_argument("--lr", type=float, default=d.lr)
+    t.add_argument("--snr-db", type=float, default=d.snr_db, help="training AWGN SNR in dB")
+    t.add_argument("--width", type=int, default=d.width, help="conv channels")
+    t.add_argument("--seed", type=int, default=d.seed)
+    t.add_argument("--images", default=None, help="train on the images of this folder instead")
+    t.add_argument("--cifar10", default=None, help="train on CIFAR-10 python batches in this folder instead")
+    t.set_defaults(func=_train)
+    c = sub.add_parser("curves", help="evaluate C[i, k] on the held-out test crops and write the curves file")
+    c.add_argument("--ckpt", required=True, help="checkpoint directory of `train`")
+    c.add_argument("--out", required=True, help="curves .npz to write")
+    c.add_argument("--model-out", default=None, help="params .msgpack to write (default: beside --out)")
+    c.set_defaults(func=_curves)
+    f = sub.add_parser("figure", help="decoded examples and the PSNR-vs-k curve")
+    f.add_argument("--out", required=True, help="png to write")
+    f.add_argument("--model", default=None, help="params .msgpack (default: the shipped model)")
+    f.add_argument("--curves", default=None, help="curves .npz (default: the shipped curves)")
+    f.set_defaults(func=_figure)
+    a = p.parse_args(argv)
+    try:
+        a.func(a)
+    except (ValueError, FileNotFoundError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
