@@ -16,7 +16,7 @@ import tempfile
 import time
 from pathlib import Path
 
-DEFAULTS = {"scenario": "fixed", "reward_mode": "gain", "bandwidth": 20e3}
+DEFAULTS = {"scenario": "fixed", "reward_mode": "gain", "bandwidth": 20e3, "kappa_c": 10.0}
 CONFIG_FILE, METRICS_FILE, CKPT_FILE, MODEL_FILE = "config.json", "metrics.csv", "checkpoint.msgpack", "model.msgpack"
 METRIC_COLUMNS = ("seed", "chunk", "env_steps", "epsilon", "episodes", "loss", "mean_psnr", "return", "arrived", "coverage")
 
@@ -35,6 +35,8 @@ def parse_args(argv=None):
     p.add_argument("--reward-mode", choices=("paper", "gain"), default=DEFAULTS["reward_mode"],
                    help="reward of MODEL.md section 4 (default: %(default)s)")
     p.add_argument("--bandwidth", type=float, default=DEFAULTS["bandwidth"], help="device uplink band B in Hz")
+    p.add_argument("--kappa-c", type=float, default=DEFAULTS["kappa_c"],
+                   help="weight of the PSNR gain in the 'gain' reward (MODEL.md section 4; default: %(default)s)")
     p.add_argument("--total-steps", type=int, default=d.total_steps, help="environment steps, summed over envs")
     p.add_argument("--seeds", type=int, default=1, help="independent agents trained in one program")
     p.add_argument("--seed", type=int, default=0, help="base random seed")
@@ -48,7 +50,7 @@ def parse_args(argv=None):
     p.add_argument("--max-segments", type=int, default=None,
                    help="stop after this many segments in this session (continue later with --resume)")
     p.add_argument("--eval-episodes", type=int, default=512, help="greedy-policy evaluation episodes (0: skip)")
-    p.add_argument("--curves", type=str, default=None, help="PSNR curves .npz (default: the shipped DeepJSCC curves)")
+    p.add_argument("--curves", type=str, default=None, help="PSNR curves .npz, or 'synthetic' for the stand-in test curves (default: the shipped DeepJSCC curves)")
     p.add_argument("--out", type=str, default=None, help="run folder (default: runs/ddqn_<scenario>_<reward-mode>)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
@@ -83,7 +85,7 @@ def run_config(args) -> dict:
     cfg = DDQNConfig(total_steps=args.total_steps, num_envs=args.num_envs, batch_size=args.batch_size,
                      gamma=args.gamma, lr=args.lr, steps_per_chunk=args.steps_per_chunk,
                      learning_starts=args.learning_starts)
-    return {"scenario": args.scenario, "reward_mode": args.reward_mode, "bandwidth": args.bandwidth,
+    return {"scenario": args.scenario, "reward_mode": args.reward_mode, "bandwidth": args.bandwidth, "kappa_c": args.kappa_c,
             "seeds": args.seeds, "seed": args.seed, "segments": args.segments, "curves": args.curves,
             "ddqn": cfg.to_dict()}
 
@@ -162,12 +164,16 @@ def main(argv=None) -> int:
     from semuav_jax.agents.ddqn import DDQNConfig, make_train
     from semuav_jax.agents.evaluate import compare
     from semuav_jax.agents.scenarios import scenario_params
-    from semuav_jax.curves import load_curves
+    from semuav_jax.curves import load_curves, synthetic_curves
 
     out = Path(args.out)
     try:
-        curves = load_curves(cfg["curves"]) if cfg["curves"] else None
-        params = scenario_params(cfg["scenario"], curves, reward_mode=cfg["reward_mode"], B=cfg["bandwidth"])
+        if cfg["curves"] == "synthetic":
+            curves = synthetic_curves()
+        else:
+            curves = load_curves(cfg["curves"]) if cfg["curves"] else None
+        params = scenario_params(cfg["scenario"], curves, reward_mode=cfg["reward_mode"], B=cfg["bandwidth"],
+                                  kappa_c=cfg["kappa_c"])
         config = DDQNConfig.from_dict(cfg["ddqn"])
         prepare_folder(args, cfg)
     except (UsageError, ValueError, FileNotFoundError) as e:

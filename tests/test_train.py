@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from semuav_jax.agents.ddqn import DDQNConfig
 from semuav_jax.curves import save_curves
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -36,7 +37,7 @@ def test_outputs(run_dir):
     for f in ("config.json", "metrics.csv", "learning_curve.png", "checkpoint.msgpack", "model.msgpack", "eval.json"):
         assert (run_dir / f).is_file(), f
     cfg = json.loads((run_dir / "config.json").read_text())
-    assert cfg["seeds"] == 2 and cfg["ddqn"]["lr"] == 5e-5
+    assert cfg["seeds"] == 2 and cfg["ddqn"]["lr"] == DDQNConfig().lr
     rows = list(csv.DictReader(open(run_dir / "metrics.csv")))
     assert len(rows) == 2 * 4  # 2 seeds x 80 / (4 envs x 5 steps) chunks
     ev = json.loads((run_dir / "eval.json").read_text())

@@ -19,9 +19,11 @@ from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import episode
 
 try:
-    import baselines as _baselines
+    from baselines import DEFAULT_V_B
+    from baselines import evaluate as baseline_evaluate
+    from baselines import run as baseline_run
 except ImportError:  # the agent does not need the baselines to be evaluated
-    _baselines = None
+    DEFAULT_V_B = baseline_evaluate = baseline_run = None
 
 
 @functools.lru_cache(maxsize=None)
@@ -44,8 +46,8 @@ def evaluate_agent(network, net_params, keys, params: EnvParams) -> dict:
     """Metrics (dict of (E,) NumPy arrays) of the greedy policy of ``net_params`` on episodes ``keys``."""
     validate_params(params)
     policy = greedy_policy(network)
-    if _baselines is not None:
-        out = _baselines.run(policy, keys, params, net_params, state_axes=None)
+    if baseline_run is not None:
+        out = baseline_run(policy, keys, params, net_params, state_axes=None)
     else:
         out = _run(policy, keys, params, net_params)
     return jax.tree.map(np.asarray, out)
@@ -66,11 +68,11 @@ def compare(network, net_params, keys, params: EnvParams, baselines=("greedy", "
     """
     agent = evaluate_agent(network, net_params, keys, params)
     out = {"ddqn": {k: mean_ci(agent[k]) for k in ("mean_psnr", "coverage", "arrived", "mission_time")}}
-    if _baselines is None:
+    if baseline_evaluate is None:
         return out
-    v_b = _baselines.DEFAULT_V_B if v_b is None else v_b
+    v_b = DEFAULT_V_B if v_b is None else v_b
     for b in baselines:
-        m = _baselines.evaluate(b, keys, params, v_b=v_b)
+        m = baseline_evaluate(b, keys, params, v_b=v_b)
         out[b] = {k: mean_ci(m[k]) for k in ("mean_psnr", "coverage", "arrived", "mission_time")}
         out[f"margin_vs_{b}"] = mean_ci(agent["mean_psnr"] - m["mean_psnr"])
     return out
