@@ -123,3 +123,18 @@ def test_short_training_improves_return(curves):
     before = evaluate_agent(tr.network, untrained, keys, params)["return"].mean()
     after = evaluate_agent(tr.network, state.params, keys, params)["return"].mean()
     assert after > before + 300.0, (before, after)
+
+
+def test_agent_features_ignore_device_order(curves):
+    """Permuting the devices of a state leaves the Q-network's input unchanged (random layouts)."""
+    from semuav_jax.agents.ddqn import agent_features
+    from semuav_jax.env import reset_state
+    from semuav_jax.observation import observation
+
+    params = scenario_params("random", curves)
+    s = reset_state(jax.random.PRNGKey(3), params)
+    perm = jnp.array([3, 1, 4, 0, 9, 2, 8, 5, 7, 6])
+    s2 = s.replace(dev_pos=s.dev_pos[perm], dev_img=s.dev_img[perm], m=s.m[perm], phi=s.phi[perm], x=s.x[perm])
+    f1, f2 = agent_features(observation(s, params)), agent_features(observation(s2, params))
+    np.testing.assert_allclose(f1, f2)
+    assert f1.shape == (9 + 2 + 10 * 7,)

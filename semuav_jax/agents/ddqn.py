@@ -226,7 +226,6 @@ class Trainer(NamedTuple):
     init: Any  # key -> TrainState (warm-up included)
     run: Any  # (TrainState, n_chunks static) -> (TrainState, per-chunk metrics)
     train: Any  # key -> (TrainState, per-chunk metrics), the whole run
-    q_values: Any  # (params, obs) -> Q
 
 
 def make_train(config: DDQNConfig, env_params: EnvParams) -> Trainer:
@@ -331,8 +330,5 @@ def make_train(config: DDQNConfig, env_params: EnvParams) -> Trainer:
     def train(key):
         return run(init(key), config.num_chunks)
 
-    def q_values(params, obs):
-        return network.apply(params, obs)
-
-    return Trainer(config=config, network=network, init=init, run=run, train=train, q_values=q_values)
+    return Trainer(config=config, network=network, init=init, run=run, train=train)
 
