@@ -162,7 +162,7 @@ def main(argv=None) -> int:
     from tqdm import tqdm
 
     from semuav_jax.agents.ddqn import DDQNConfig, make_train
-    from semuav_jax.agents.evaluate import compare
+    from semuav_jax.agents.evaluate import baseline_results, compare
     from semuav_jax.agents.scenarios import scenario_params
     from semuav_jax.curves import load_curves, synthetic_curves
 
@@ -228,9 +228,10 @@ def main(argv=None) -> int:
     if args.eval_episodes:
         eval_keys = jax.random.split(jax.random.PRNGKey(10_000 + cfg["seed"]), args.eval_episodes)
         report = {"eval_episodes": args.eval_episodes, "train_wall_s": wall, "seeds": []}
+        reference = baseline_results(eval_keys, params)
         for s in range(cfg["seeds"]):
             net = jax.tree.map(lambda x: x[s], state.params)
-            res = compare(trainer.network, net, eval_keys, params)
+            res = compare(trainer.network, net, eval_keys, params, reference)
             report["seeds"].append(res)
             line = "  ".join(f"{k} {v['mean_psnr'][0]:.2f}±{v['mean_psnr'][1]:.2f}" for k, v in res.items()
                              if isinstance(v, dict))

@@ -59,20 +59,26 @@ def mean_ci(x, z: float = 1.96):
     return float(x.mean()), float(z * x.std(ddof=1) / np.sqrt(len(x))) if len(x) > 1 else 0.0
 
 
-def compare(network, net_params, keys, params: EnvParams, baselines=("greedy", "tsp"), v_b=None) -> dict:
+def baseline_results(keys, params: EnvParams, baselines=("greedy", "tsp"), v_b=None) -> dict:
+    """Per-episode metrics of each baseline on episodes ``keys`` ({} without the ``baselines`` package)."""
+    if baseline_evaluate is None:
+        return {}
+    v_b = DEFAULT_V_B if v_b is None else v_b
+    return {b: baseline_evaluate(b, keys, params, v_b=v_b) for b in baselines}
+
+
+def compare(network, net_params, keys, params: EnvParams, reference: dict | None = None) -> dict:
     """Mean PSNR of the agent and of each baseline on the same episodes, with paired margins.
 
-    Returns ``{name: {"mean_psnr": (mean, ci95)}, "margin_vs_<b>": (mean, ci95)}``; the margin is
-    the per-episode difference agent - baseline (same layout, delays and images). Baselines are
-    skipped when the ``baselines`` package is absent.
+    ``reference`` is :func:`baseline_results` on the same ``keys`` (computed here when None).
+    Returns ``{name: {metric: (mean, ci95)}, "margin_vs_<b>": (mean, ci95)}``; the margin is the
+    per-episode difference agent - baseline (same layout, delays and images).
     """
+    reference = baseline_results(keys, params) if reference is None else reference
     agent = evaluate_agent(network, net_params, keys, params)
-    out = {"ddqn": {k: mean_ci(agent[k]) for k in ("mean_psnr", "coverage", "arrived", "mission_time")}}
-    if baseline_evaluate is None:
-        return out
-    v_b = DEFAULT_V_B if v_b is None else v_b
-    for b in baselines:
-        m = baseline_evaluate(b, keys, params, v_b=v_b)
-        out[b] = {k: mean_ci(m[k]) for k in ("mean_psnr", "coverage", "arrived", "mission_time")}
-        out[f"margin_vs_{b}"] = mean_ci(agent["mean_psnr"] - m["mean_psnr"])
+    out = {}
+    for name, m in {"ddqn": agent, **reference}.items():
+        out[name] = {k: mean_ci(m[k]) for k in ("mean_psnr", "coverage", "arrived", "mission_time")}
+    for name, m in reference.items():
+        out[f"margin_vs_{name}"] = mean_ci(agent["mean_psnr"] - m["mean_psnr"])
     return out
