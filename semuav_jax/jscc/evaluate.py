@@ -19,7 +19,8 @@ from flax import serialization
 from semuav_jax.curves import default_curves_path, load_curves, save_curves
 from semuav_jax.jscc import data
 from semuav_jax.jscc.model import BITS_PER_SYMBOL, IMAGE_SHAPE, IQ_CLIP, M, DeepJSCC, prefix_mask, quantize_iq, truncate
-from semuav_jax.jscc.train import TrainConfig, atomic_write, load_checkpoint, load_config, make_optimizer
+from semuav_jax.io import atomic_write
+from semuav_jax.jscc.train import load_checkpoint, load_config, make_optimizer
 
 DEFAULT_MODEL = "deepjscc.msgpack"
 FRACTIONS = {"0": 0, "1/10": M // 10, "1/4": M // 4, "1/2": M // 2, "1": M}
@@ -32,7 +33,7 @@ def default_model_path() -> Path:
 def save_model(path: str | os.PathLike, params, width: int) -> str:
     """Write params (+ width) as flax msgpack atomically; returns the file's sha256."""
     blob = serialization.msgpack_serialize({"width": width, "params": jax.device_get(params)})
-    atomic_write(Path(path), blob)
+    atomic_write(path, blob)
     return hashlib.sha256(blob).hexdigest()
 
 
