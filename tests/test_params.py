@@ -16,7 +16,7 @@ def test_defaults_match_model_md(params):
     np.testing.assert_array_equal(params.q_fin, [1000, 300])
     np.testing.assert_array_equal(params.bs_pos, [500, 300])
     assert (params.bs_h, params.P_b, params.B_b, params.L_cmd, params.proc_max, params.beta) == (25, 1, 100e3, 64, 0.1, 16)
-    assert (params.r_g, params.P_miss, params.kappa_d, params.eps) == (500, 500, 1, 1e-6)
+    assert (params.r_g, params.P_miss, params.kappa_d, params.kappa_c, params.eps) == (500, 500, 1, 10, 1e-6)
 
 
 @pytest.mark.parametrize(
