@@ -9,12 +9,14 @@ behind them (CSV, JSON): mean PSNR, coverage and arrival with 95 % confidence in
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
 from pathlib import Path
 
-QUICK = {"bandwidths": (5e3, 20e3, 25e3, 40e3), "velocities": (4.0, 8.9, 16.0, 24.0), "total_steps": 320_000}
+QUICK = {"bandwidths": (5e3, 20e3, 25e3, 40e3), "velocities": (4.0, 8.9, 16.0, 24.0), "total_steps": 320_000,
+         "eps_start": 0.1}
 
 
 class UsageError(Exception):
@@ -27,8 +29,9 @@ def parse_args(argv=None):
 
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--quick", action="store_true",
-                   help=f"a few minutes: bandwidths {QUICK['bandwidths']}, speeds {QUICK['velocities']}, "
-                        f"{QUICK['total_steps']:,} training steps per agent")
+                   help=f"a few minutes: bandwidths {QUICK['bandwidths']}, speeds {QUICK['velocities']}, each agent "
+                        f"fine-tuned for {QUICK['total_steps']:,} steps from the shipped one (docs/RESULTS.md)")
+    p.add_argument("--scratch", action="store_true", help="with --quick: train from random weights instead")
     p.add_argument("--out", default="results", help="output folder (default: %(default)s)")
     p.add_argument("--overwrite", action="store_true", help="replace the results in an existing --out")
     p.add_argument("--runs", nargs="+", default=None,
@@ -106,6 +109,7 @@ def main(argv=None) -> int:
 
     from semuav_jax import figures, paper
     from semuav_jax.agents.ddqn import DDQNConfig
+    from semuav_jax.agents.pretrained import load_pretrained
     from semuav_jax.agents.scenarios import scenario_params
     from semuav_jax.curves import load_curves
     from semuav_jax.io import atomic_write
@@ -126,11 +130,17 @@ def main(argv=None) -> int:
     k_train, k_eval, k_traj = jax.random.split(key, 3)
 
     if agents is None:
-        config = DDQNConfig(total_steps=args.total_steps)
+        config, init = DDQNConfig(total_steps=args.total_steps), None
+        if args.quick and not args.scratch:
+            base, _, init = load_pretrained()
+            config = dataclasses.replace(base, total_steps=args.total_steps, eps_start=QUICK["eps_start"])
         t0 = time.time()
-        with tqdm(total=config.num_chunks, desc=f"training {len(args.bandwidths)} DDQN agents (vmapped over B)",
+        what = "fine-tuning the shipped agent" if init is not None else "training"
+        with tqdm(total=config.num_chunks, desc=f"{what} at {len(args.bandwidths)} bandwidths (vmapped)",
                   unit="chunk", dynamic_ncols=True) as bar:
-            agents = paper.train_over_bandwidth(config, params, args.bandwidths, k_train, progress=bar.update)
+            agents = paper.train_over_bandwidth(
+                config, params, args.bandwidths, k_train, progress=bar.update, init_weights=init
+            )
         timings["train_s"] = time.time() - t0
         save_runs(agents, config, args, out)
         figures.training_curves(agents, out / "training.png")

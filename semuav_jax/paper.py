@@ -45,15 +45,21 @@ class BandwidthAgents:
     curves: dict  # per-chunk training metrics, (len(bandwidths), chunks) arrays
 
 
-def train_over_bandwidth(config: DDQNConfig, params: EnvParams, bandwidths, key, segments=4, progress=None):
+def train_over_bandwidth(
+    config: DDQNConfig, params: EnvParams, bandwidths, key, segments=4, progress=None, init_weights=None
+):
     """Train one agent per bandwidth in one vmapped program (own key each), in ``segments`` host steps.
 
-    ``progress(chunks_done)`` is called after each segment (e.g. a tqdm update).
+    ``init_weights`` (one network's weights) starts every agent from them instead of a random
+    initialization (fine-tuning). ``progress(chunks_done)`` is called after each segment.
     """
     n_agents = len(bandwidths)
     keys, B = shard_episodes((jax.random.split(key, n_agents), jnp.asarray(bandwidths, jnp.float32)))
     trainer_at = lambda b: make_train(config, params.replace(B=b))
     state = jax.jit(jax.vmap(lambda k, b: trainer_at(b).init(k)))(keys, B)
+    if init_weights is not None:
+        w = jax.tree.map(lambda x: jnp.broadcast_to(x, (len(keys),) + x.shape), init_weights)
+        state = state.replace(params=w, target_params=w)
     seg = -(-config.num_chunks // segments)
     runs, history, done = {}, [], 0
     while done < config.num_chunks:

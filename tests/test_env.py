@@ -130,7 +130,7 @@ def test_gain_reward_is_psnr_increase(curves):
     p = make_params(curves, device_pos=[q], device_img=[3], layout="fixed", reward_mode="gain", kappa_d=0.0)
     s = initial_state(p.device_pos, p.device_img, p).replace(q=jnp.asarray(q))
     s1, r = step_u(0.0, s, jnp.zeros(2), p)
-    assert float(r) == pytest.approx(float(s1.phi[0] - s.phi[0]), abs=1e-5)
+    assert float(r) == pytest.approx(10.0 * float(s1.phi[0] - s.phi[0]), rel=1e-5)  # kappa_c = 10
     assert float(r) > 0
 
 
