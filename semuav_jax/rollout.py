@@ -51,7 +51,8 @@ def episode(policy: Policy, key, params: EnvParams, policy_state=None, init_stat
         out = {f: getattr(state, f) for f in TRACE_FIELDS} | {"reward": rew} if trace else None
         return (state, ps), out
 
-    (final, _), tr = jax.lax.scan(body, (state, policy_state), delay_draws(k_steps, params))
+    # unroll=2 lets XLA fuse across two slots: ~15 % faster on CPU (docs/performance.md)
+    (final, _), tr = jax.lax.scan(body, (state, policy_state), delay_draws(k_steps, params), unroll=2)
     return episode_metrics(final, params), tr
 
 
