@@ -12,9 +12,10 @@ import csv
 import json
 import os
 import sys
-import tempfile
 import time
 from pathlib import Path
+
+from semuav_jax.io import atomic_write
 
 DEFAULTS = {"scenario": "fixed", "reward_mode": "gain", "bandwidth": 20e3, "kappa_c": 10.0}
 CONFIG_FILE, METRICS_FILE, CKPT_FILE, MODEL_FILE = "config.json", "metrics.csv", "checkpoint.msgpack", "model.msgpack"
@@ -64,18 +65,6 @@ def parse_args(argv=None):
     if args.eval_episodes < 0:
         raise UsageError(f"--eval-episodes must be >= 0, got {args.eval_episodes}")
     return args
-
-
-def atomic_write(path: Path, data: bytes) -> None:
-    """Write ``data`` to a temporary file in the same folder, then ``os.replace`` it onto ``path``."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
 
 
 def run_config(args) -> dict:

@@ -16,7 +16,7 @@ import numpy as np
 
 import baselines
 from semuav_jax.agents.ddqn import DDQNConfig, make_train
-from semuav_jax.agents.evaluate import greedy_policy
+from semuav_jax.agents.evaluate import greedy_policy, mean_ci
 from semuav_jax.params import EnvParams
 from semuav_jax.rollout import rollout
 from semuav_jax.sharding import shard_episodes
@@ -25,14 +25,6 @@ BANDWIDTHS = (5e3, 10e3, 15e3, 20e3, 25e3, 30e3, 35e3, 40e3)
 VELOCITIES = (4.0, 6.0, baselines.DEFAULT_V_B, 11.0, 14.0, 17.0, 20.0, 24.0)
 PANEL_B_BANDWIDTH = 25e3
 SUMMARY = ("mean_psnr", "coverage", "arrived", "psnr_visited", "mission_time")
-
-
-def mean_ci(x, axis=-1):
-    """Mean and half-width of the normal 95 % confidence interval along ``axis``."""
-    x = np.asarray(x, np.float64)
-    n = x.shape[axis]
-    half = 1.96 * x.std(axis=axis, ddof=1) / np.sqrt(n) if n > 1 else np.zeros_like(x.mean(axis=axis))
-    return x.mean(axis=axis), half
 
 
 @dataclasses.dataclass
@@ -122,8 +114,7 @@ def _row(panel, policy, B, v_b, m) -> dict:
         x = np.asarray(m[k], np.float64)
         if k == "psnr_visited":  # defined only where something was covered (docs/model.md, eq. 8.1)
             x = x[np.asarray(m["coverage"]) > 0]
-        mean, half = mean_ci(x) if len(x) > 1 else (np.nan, np.nan)
-        row[k], row[f"{k}_ci95"] = float(mean), float(half)
+        row[k], row[f"{k}_ci95"] = mean_ci(x) if len(x) > 1 else (np.nan, np.nan)
     return row
 
 

@@ -78,6 +78,25 @@ def test_short_training_lowers_loss_and_resume_is_exact(tmp_path):
         np.testing.assert_array_equal(a, b)
 
 
+def test_monotone_finetune_starts_from_run_and_resume_is_exact(tmp_path):
+    photos = [data.builtin_test_set()[0][i] for i in range(6)]
+    base = TrainConfig(steps=10, batch=4, width=8, lr=3e-3)
+    start, _ = train(base, photos, out=tmp_path / "base", progress=False)
+    cfg = TrainConfig(steps=20, batch=4, width=8, lr=1e-3, monotone_weight=4.0, init_from=str(tmp_path / "base"))
+    from semuav_jax.jscc.train import start_params
+
+    for a, b in zip(jax.tree_util.tree_leaves(start), jax.tree_util.tree_leaves(start_params(cfg))):
+        np.testing.assert_array_equal(a, b)
+    params, hist = train(cfg, photos, out=tmp_path / "a", progress=False, log_every=10)
+    assert all(np.isfinite(h[1]) for h in hist)
+    train(cfg, photos, out=tmp_path / "b", minutes=1e-9, progress=False, log_every=10)
+    resumed, _ = train(cfg, photos, out=tmp_path / "b", resume=True, progress=False, log_every=10)
+    for a, b in zip(jax.tree_util.tree_leaves(params), jax.tree_util.tree_leaves(resumed)):
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(ValueError):
+        TrainConfig(monotone_weight=-1.0).validate()
+
+
 def test_curves_roundtrip_with_metadata(tmp_path):
     C = np.linspace(10, 30, 2 * 5, dtype=np.float32).reshape(2, 5)
     meta = {"image_shape": [32, 32, 3], "ratio": "1/6", "test_images": ["a", "b"]}

@@ -1,29 +1,22 @@
 """Greedy (epsilon = 0) evaluation of a trained DDQN and paired comparison with the baselines.
 
-Episodes run through the baselines' shared evaluation path (``baselines.evaluate.run``: one
-jitted, vmapped program, MODEL.md section 8 metrics) when the ``baselines`` package is present,
-else through ``semuav_jax.rollout.episode`` directly; both use the same per-episode keys.
+Episodes run through the baselines' shared evaluation path (``baselines.run``: one jitted,
+vmapped ``semuav_jax.rollout`` program, MODEL.md section 8 metrics), on the same per-episode keys.
 """
 
 from __future__ import annotations
 
 import functools
-from functools import partial
 
 import jax
 import numpy as np
 
+from baselines import DEFAULT_V_B
+from baselines import evaluate as baseline_evaluate
+from baselines import run as baseline_run
 from semuav_jax.actions import action_to_accel
 from semuav_jax.observation import observation
 from semuav_jax.params import EnvParams, validate_params
-from semuav_jax.rollout import episode
-
-try:
-    from baselines import DEFAULT_V_B
-    from baselines import evaluate as baseline_evaluate
-    from baselines import run as baseline_run
-except ImportError:  # the agent does not need the baselines to be evaluated
-    DEFAULT_V_B = baseline_evaluate = baseline_run = None
 
 
 @functools.lru_cache(maxsize=None)
@@ -37,20 +30,11 @@ def greedy_policy(network):
     return policy
 
 
-@partial(jax.jit, static_argnames=("policy",))
-def _run(policy, keys, params, net_params):
-    return jax.vmap(lambda k: episode(policy, k, params, policy_state=net_params)[0])(keys)
-
-
 def evaluate_agent(network, net_params, keys, params: EnvParams) -> dict:
     """Metrics (dict of (E,) NumPy arrays) of the greedy policy of ``net_params`` on episodes ``keys``."""
     validate_params(params)
     policy = greedy_policy(network)
-    if baseline_run is not None:
-        out = baseline_run(policy, keys, params, net_params, state_axes=None)
-    else:
-        out = _run(policy, keys, params, net_params)
-    return jax.tree.map(np.asarray, out)
+    return jax.tree.map(np.asarray, baseline_run(policy, keys, params, net_params, state_axes=None))
 
 
 def mean_ci(x, z: float = 1.96):
@@ -60,9 +44,7 @@ def mean_ci(x, z: float = 1.96):
 
 
 def baseline_results(keys, params: EnvParams, baselines=("greedy", "tsp"), v_b=None) -> dict:
-    """Per-episode metrics of each baseline on episodes ``keys`` ({} without the ``baselines`` package)."""
-    if baseline_evaluate is None:
-        return {}
+    """Per-episode metrics of each baseline on episodes ``keys``."""
     v_b = DEFAULT_V_B if v_b is None else v_b
     return {b: baseline_evaluate(b, keys, params, v_b=v_b) for b in baselines}
 

@@ -28,7 +28,11 @@ def _train(a) -> None:
     if a.resume:
         cfg, _ = load_config(a.out)
     else:
-        cfg = TrainConfig(steps=a.steps, batch=a.batch, lr=a.lr, snr_db=a.snr_db, width=a.width, seed=a.seed)
+        cfg = TrainConfig(
+            steps=a.steps, batch=a.batch, lr=a.lr, snr_db=a.snr_db, width=a.width, seed=a.seed,
+            monotone_weight=a.monotone_weight, monotone_margin=a.monotone_margin,
+            init_from=str(a.init_from) if a.init_from else None,
+        )
     if a.minutes is not None and not a.minutes > 0:
         raise ValueError(f"--minutes must be positive, got {a.minutes}")
     _, history = train(cfg, photos, out=a.out, resume=a.resume, minutes=a.minutes)
@@ -66,6 +70,10 @@ def main(argv=None) -> int:
     t.add_argument("--snr-db", type=float, default=d.snr_db, help="training AWGN SNR in dB")
     t.add_argument("--width", type=int, default=d.width, help="conv channels")
     t.add_argument("--seed", type=int, default=d.seed)
+    t.add_argument("--init-from", default=None, help="start from the parameters of the run in this directory")
+    t.add_argument("--monotone-weight", type=float, default=d.monotone_weight,
+                   help="weight of the hinge that makes loss(k2) <= loss(k1) for prefixes k1 < k2 (0: plain loss)")
+    t.add_argument("--monotone-margin", type=float, default=d.monotone_margin, help="margin of that hinge (dB)")
     t.add_argument("--images", default=None, help="train on the images of this folder instead")
     t.add_argument("--cifar10", default=None, help="train on CIFAR-10 python batches in this folder instead")
     t.set_defaults(func=_train)

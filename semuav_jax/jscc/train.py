@@ -8,6 +8,16 @@ PSNR (capped at 40 dB), so that the short prefixes, whose errors are an order of
 larger, do not dominate the gradient as they do with a plain MSE. The batch of step t is
 drawn from ``numpy.random.default_rng([seed, t])`` and the channel key from
 ``fold_in(PRNGKey(seed), t)``, so a resumed run is identical to an uninterrupted one.
+
+Monotone fine-tuning (``monotone_weight > 0``, usually with ``init_from`` naming the directory
+of a finished run whose parameters start the run; the optimizer starts afresh): every crop is
+decoded from two prefixes k1 < k2 of the same transmission with the same channel noise on the
+shared symbols (k2 = M for a quarter of the crops, uniform in {1, ..., M} otherwise; k1 =
+max(k2 - d, 0) with d uniform in {1, ..., 32} for half of the crops, uniform in {0, ..., k2 - 1}
+otherwise). The loss is the log-MSE at both prefixes plus ``monotone_weight`` times the mean
+hinge relu(loss(k2) - loss(k1) + ``monotone_margin``) (margin 0 by default), which
+trains the decoder to do at least as well from a longer prefix as from a shorter one (the mean
+PSNR-vs-k curve of a model trained with the plain loss sags beyond k ~ 160).
 """
 
 from __future__ import annotations
@@ -27,7 +37,7 @@ from flax import serialization
 
 from semuav_jax.io import atomic_write
 from semuav_jax.jscc.data import sample_batch
-from semuav_jax.jscc.model import IMAGE_SHAPE, M, DeepJSCC
+from semuav_jax.jscc.model import IMAGE_SHAPE, M, DeepJSCC, prefix_mask, truncate
 
 CKPT_FILE = "checkpoint.msgpack"
 MSE_FLOOR = 1e-4
@@ -44,6 +54,9 @@ class TrainConfig:
     snr_db: float = 30.0
     width: int = 32
     seed: int = 0
+    monotone_weight: float = 0.0
+    monotone_margin: float = 0.0
+    init_from: str | None = None
 
     def validate(self) -> None:
         for name in ("steps", "batch", "width"):
@@ -53,6 +66,10 @@ class TrainConfig:
             raise ValueError(f"lr must be positive, got {self.lr}")
         if not np.isfinite(self.snr_db):
             raise ValueError(f"snr_db must be finite, got {self.snr_db}")
+        if not (np.isfinite(self.monotone_weight) and self.monotone_weight >= 0):
+            raise ValueError(f"monotone_weight must be >= 0, got {self.monotone_weight}")
+        if not np.isfinite(self.monotone_margin):
+            raise ValueError(f"monotone_margin must be finite, got {self.monotone_margin}")
 
 
 def make_optimizer(cfg: TrainConfig) -> optax.GradientTransformation:
@@ -65,6 +82,21 @@ def init_params(cfg: TrainConfig):
     model = DeepJSCC(cfg.width)
     x = jnp.zeros((1, *IMAGE_SHAPE), jnp.float32)
     return model.init(jax.random.PRNGKey(cfg.seed), x, jnp.array([M]), jax.random.PRNGKey(0), cfg.snr_db)["params"]
+
+
+def start_params(cfg: TrainConfig):
+    """Parameters a fresh run starts from: random, or those of the run in ``cfg.init_from``."""
+    if cfg.init_from is None:
+        return init_params(cfg)
+    src_cfg, _ = load_config(cfg.init_from)
+    if src_cfg.width != cfg.width:
+        raise ValueError(f"--init-from {cfg.init_from} has width {src_cfg.width}, not {cfg.width}")
+    params, _, _ = load_checkpoint(cfg.init_from, src_cfg, make_optimizer(src_cfg))
+    return params
+
+
+def _log_mse(y, x):
+    return 10.0 * jnp.log10(jnp.mean((y - x) ** 2, axis=(1, 2, 3)) + MSE_FLOOR)
 
 
 @functools.lru_cache(maxsize=4)
@@ -87,7 +119,33 @@ def make_train_step(cfg: TrainConfig):
         updates, opt_state = opt.update(grads, opt_state, params)
         return optax.apply_updates(params, updates), opt_state, loss
 
-    return step
+    def mono_loss_fn(params, x, k1, k2, key):
+        s = model.apply({"params": params}, x, method=DeepJSCC.encode)
+        k = jnp.concatenate([k1, k2])
+        mask = prefix_mask(k)
+        sigma = jnp.sqrt(10.0 ** (-cfg.snr_db / 10.0) / 2.0)
+        kr, ki = jax.random.split(key)
+        noise = sigma * (jax.random.normal(kr, s.shape) + 1j * jax.random.normal(ki, s.shape))
+        rx = jnp.where(mask, truncate(jnp.concatenate([s, s]), k) + jnp.concatenate([noise, noise]), 0.0)
+        y = model.apply({"params": params}, rx, method=DeepJSCC.decode)
+        l1, l2 = jnp.split(_log_mse(y, jnp.concatenate([x, x])), 2)
+        hinge = jax.nn.relu(l2 - l1 + cfg.monotone_margin)
+        return 0.5 * jnp.mean(l1 + l2) + cfg.monotone_weight * jnp.mean(hinge)
+
+    @jax.jit
+    def mono_step(params, opt_state, x, key):
+        kk, kn = jax.random.split(key)
+        b = x.shape[0]
+        c = jax.random.split(kk, 5)
+        k2 = jnp.where(jax.random.bernoulli(c[0], 0.25, (b,)), M, jax.random.randint(c[1], (b,), 1, M + 1))
+        near = jnp.maximum(k2 - jax.random.randint(c[2], (b,), 1, 33), 0)
+        far = jax.random.randint(c[3], (b,), 0, k2)
+        k1 = jnp.where(jax.random.bernoulli(c[4], 0.5, (b,)), near, far)
+        loss, grads = jax.value_and_grad(mono_loss_fn)(params, x, k1, k2, kn)
+        updates, opt_state = opt.update(grads, opt_state, params)
+        return optax.apply_updates(params, updates), opt_state, loss
+
+    return mono_step if cfg.monotone_weight > 0 else step
 
 
 def save_checkpoint(out: Path, cfg: TrainConfig, params, opt_state, step: int, history: list) -> None:
@@ -153,7 +211,7 @@ def train(
         history = meta.get("history", [])
         elapsed0 = history[-1][2] if history else 0.0
     else:
-        params = init_params(cfg)
+        params = start_params(cfg)
         opt_state = opt.init(params)
     step_fn = make_train_step(cfg)
     base_key = jax.random.PRNGKey(cfg.seed)
