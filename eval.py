@@ -15,17 +15,13 @@ import sys
 import time
 from pathlib import Path
 
-QUICK = {"bandwidths": (5e3, 20e3, 25e3, 40e3), "velocities": (4.0, 8.9, 16.0, 24.0), "total_steps": 320_000,
-         "eps_start": 0.1}
-
-
 class UsageError(Exception):
     """A bad option or folder: one line on stderr, exit code 2."""
 
 
 def parse_args(argv=None):
     from semuav_jax.agents.ddqn import DDQNConfig
-    from semuav_jax.paper import BANDWIDTHS, VELOCITIES
+    from semuav_jax.paper import BANDWIDTHS, QUICK, VELOCITIES
 
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--quick", action="store_true",
@@ -133,7 +129,7 @@ def main(argv=None) -> int:
         config, init = DDQNConfig(total_steps=args.total_steps), None
         if args.quick and not args.scratch:
             base, _, init = load_pretrained()
-            config = dataclasses.replace(base, total_steps=args.total_steps, eps_start=QUICK["eps_start"])
+            config = dataclasses.replace(base, total_steps=args.total_steps, eps_start=paper.QUICK["eps_start"])
         t0 = time.time()
         what = "fine-tuning the shipped agent" if init is not None else "training"
         with tqdm(total=config.num_chunks, desc=f"{what} at {len(args.bandwidths)} bandwidths (vmapped)",

@@ -24,6 +24,9 @@ from semuav_jax.sharding import shard_episodes
 BANDWIDTHS = (5e3, 10e3, 15e3, 20e3, 25e3, 30e3, 35e3, 40e3)
 VELOCITIES = (4.0, 6.0, baselines.DEFAULT_V_B, 11.0, 14.0, 17.0, 20.0, 24.0)
 PANEL_B_BANDWIDTH = 25e3
+# eval.py --quick: fewer points, and the shipped agent fine-tuned per bandwidth (low exploration)
+QUICK = {"bandwidths": (5e3, 20e3, 25e3, 40e3), "velocities": (4.0, 8.9, 16.0, 24.0), "total_steps": 320_000,
+         "eps_start": 0.1}
 SUMMARY = ("mean_psnr", "coverage", "arrived", "psnr_visited", "mission_time")
 
 

@@ -1,5 +1,5 @@
 """Issue 6's CI sweep: 64 layouts, 3 bandwidths, both baselines and a briefly trained DDQN per
-bandwidth (the shipped agent fine-tuned for 96 k steps at each, as ``eval.py --quick`` does);
+bandwidth (the shipped agent fine-tuned at each exactly as ``eval.py --quick`` does);
 checks properties (not constants) of Fig. 2's pipeline, and its outputs."""
 
 import dataclasses
@@ -12,14 +12,14 @@ from semuav_jax import paper
 from semuav_jax.agents.pretrained import load_pretrained
 from semuav_jax.agents.scenarios import scenario_params
 
-BANDWIDTHS = (10e3, 25e3, 40e3)  # 25 kHz: panel (b)
+BANDWIDTHS = (5e3, 25e3, 40e3)  # 25 kHz: panel (b)
 
 
 @pytest.fixture(scope="module")
 def sweep():
     params = scenario_params("random")
     config, _, weights = load_pretrained()
-    brief = dataclasses.replace(config, total_steps=96_000, eps_start=0.1)
+    brief = dataclasses.replace(config, total_steps=paper.QUICK["total_steps"], eps_start=paper.QUICK["eps_start"])
     agents = paper.train_over_bandwidth(brief, params, BANDWIDTHS, jax.random.key(0), init_weights=weights)
     keys = jax.random.split(jax.random.key(1), 64)
     run = lambda: {
