@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import argparse
 import csv
+import io
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -107,10 +107,9 @@ def prepare_folder(args, cfg: dict) -> None:
 
 
 def plot_curves(rows, path: Path, reference: dict | None = None) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from semuav_jax.figures import save_figure
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
     for seed in sorted({r["seed"] for r in rows}):
@@ -124,10 +123,7 @@ def plot_curves(rows, path: Path, reference: dict | None = None) -> None:
     axes[0].set(xlabel="environment steps", ylabel="mean PSNR of finished episodes (dB)", title="training (ε-greedy)")
     axes[1].set(xlabel="environment steps", ylabel="episode return")
     axes[0].legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path.with_suffix(".tmp.png"), dpi=110)
-    plt.close(fig)
-    os.replace(path.with_suffix(".tmp.png"), path)
+    save_figure(fig, path, dpi=110)
 
 
 def segment_lengths(num_chunks: int, segments: int, done: int):
@@ -197,11 +193,11 @@ def main(argv=None) -> int:
                 rows.append({"seed": s, "chunk": done + c + 1, **{k: float(metrics[k][s, c]) for k in METRIC_COLUMNS[2:]}})
         done += n
         atomic_write(out / CKPT_FILE, serialization.to_bytes(state))
-        with open(out / (METRICS_FILE + ".tmp"), "w", newline="") as f:
-            w = csv.DictWriter(f, METRIC_COLUMNS)
-            w.writeheader()
-            w.writerows({k: r[k] for k in METRIC_COLUMNS} for r in rows)
-        os.replace(out / (METRICS_FILE + ".tmp"), out / METRICS_FILE)
+        text = io.StringIO()
+        w = csv.DictWriter(text, METRIC_COLUMNS)
+        w.writeheader()
+        w.writerows({k: r[k] for k in METRIC_COLUMNS} for r in rows)
+        atomic_write(out / METRICS_FILE, text.getvalue().encode())
         plot_curves(rows, out / "learning_curve.png")
         bar.set_postfix(psnr=f"{metrics['mean_psnr'][:, -1].mean():.2f}", eps=f"{metrics['epsilon'][0, -1]:.2f}")
         bar.update(n)

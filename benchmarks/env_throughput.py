@@ -35,6 +35,7 @@ from reference_numpy import NumpyEnv, params_dict  # noqa: E402
 from semuav_jax.params import make_params  # noqa: E402
 from semuav_jax.rollout import random_policy, random_policy_state, rollout  # noqa: E402
 from semuav_jax.curves import load_curves, synthetic_curves  # noqa: E402
+from semuav_jax.io import atomic_write  # noqa: E402
 from semuav_jax.sharding import shard_episodes  # noqa: E402
 
 
@@ -93,10 +94,7 @@ def main():
         "rows": rows,
         "numpy_steps_per_s": np_sps,
     }
-    tmp = args.out + ".tmp"
-    with open(tmp, "w") as f:
-        json.dump(result, f, indent=2)
-    os.replace(tmp, args.out)
+    atomic_write(args.out, json.dumps(result, indent=2).encode())
     print(f"wrote {args.out}")
 
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import os
+import io
 from pathlib import Path
 
 import matplotlib
@@ -11,16 +11,19 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from semuav_jax.io import atomic_write  # noqa: E402
+
 STYLE = {"DDQN": dict(color="C3", marker="o"), "greedy": dict(color="C0", marker="s"), "tsp": dict(color="C2", marker="^")}
 LABEL = {"DDQN": "DDQN", "greedy": "Greedy", "tsp": "TSP"}
 
 
-def _save(fig, path: Path):
-    tmp = Path(path).with_suffix(".tmp.png")
+def save_figure(fig, path: Path, dpi: int = 120):
+    """Write ``fig`` as a PNG atomically and close it."""
+    buf = io.BytesIO()
     fig.tight_layout()
-    fig.savefig(tmp, dpi=120)
+    fig.savefig(buf, format="png", dpi=dpi)
     plt.close(fig)
-    os.replace(tmp, path)
+    atomic_write(path, buf.getvalue())
 
 
 def _panel(rows, panel, x_key, x_scale, xlabel, title, path, hline_ddqn=False):
@@ -45,7 +48,7 @@ def _panel(rows, panel, x_key, x_scale, xlabel, title, path, hline_ddqn=False):
     axes[0].set_title(title)
     axes[1].set_title(f"error bars: 95 % CI over {n} layouts")
     axes[0].legend()
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def fig2a(rows, path):
@@ -75,7 +78,7 @@ def fig2c(traj: dict, params, path):
            title=f"(c) trajectories on the paper layout, B = {float(params.B) / 1e3:g} kHz "
                  f"(grey: {radius:.0f} m coverage discs)")
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def training_curves(agents, path):
@@ -88,4 +91,4 @@ def training_curves(agents, path):
     axes[0].set(xlabel="environment steps", ylabel="mean PSNR of finished episodes (dB)", title="DDQN training")
     axes[1].set(xlabel="environment steps", ylabel="episode return")
     axes[0].legend(fontsize=8)
-    _save(fig, path)
+    save_figure(fig, path)
