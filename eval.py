@@ -57,9 +57,9 @@ def parse_args(argv=None):
 def load_runs(folders, params):
     """BandwidthAgents from train.py run folders (seed 0 of each), sorted by bandwidth."""
     import jax
-    from flax import serialization
 
     from semuav_jax.agents.ddqn import DDQNConfig, make_train
+    from semuav_jax.agents.pretrained import seed0_weights
     from semuav_jax.paper import BandwidthAgents
 
     runs = []
@@ -68,8 +68,7 @@ def load_runs(folders, params):
         if not cfg_file.is_file() or not model_file.is_file():
             raise UsageError(f"{f} is not a finished train.py run (needs config.json and model.msgpack)")
         cfg = json.loads(cfg_file.read_text())
-        net = jax.tree.map(lambda x: x[0], serialization.msgpack_restore(model_file.read_bytes()))
-        runs.append((float(cfg["bandwidth"]), net, DDQNConfig.from_dict(cfg["ddqn"])))
+        runs.append((float(cfg["bandwidth"]), seed0_weights(model_file.read_bytes()), DDQNConfig.from_dict(cfg["ddqn"])))
     runs.sort(key=lambda r: r[0])
     network = make_train(runs[0][2], params).network
     stacked = jax.tree.map(lambda *xs: jax.numpy.stack(xs), *[r[1] for r in runs])

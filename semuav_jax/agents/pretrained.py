@@ -15,9 +15,13 @@ from semuav_jax.agents.ddqn import DDQNConfig
 MODEL, CONFIG = "ddqn_random.msgpack", "ddqn_random.json"
 
 
+def seed0_weights(model_bytes: bytes):
+    """The first seed's network weights from a ``train.py`` ``model.msgpack`` (a leading seed axis)."""
+    return jax.tree.map(lambda x: x[0], serialization.msgpack_restore(model_bytes))
+
+
 def load_pretrained():
     """(config, run description, network weights) of the shipped agent."""
     data = resources.files("semuav_jax") / "data"
     run = json.loads((data / CONFIG).read_text())
-    weights = serialization.msgpack_restore((data / MODEL).read_bytes())
-    return DDQNConfig.from_dict(run["ddqn"]), run, jax.tree.map(lambda x: x[0], weights)
+    return DDQNConfig.from_dict(run["ddqn"]), run, seed0_weights((data / MODEL).read_bytes())
