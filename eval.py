@@ -70,9 +70,12 @@ def load_runs(folders, params):
         cfg = json.loads(cfg_file.read_text())
         runs.append((float(cfg["bandwidth"]), seed0_weights(model_file.read_bytes()), DDQNConfig.from_dict(cfg["ddqn"])))
     runs.sort(key=lambda r: r[0])
+    margins = {r[2].shield_margin for r in runs}
+    if len(margins) > 1:
+        raise UsageError(f"--runs: the agents use different shield margins {sorted(margins, key=str)}")
     network = make_train(runs[0][2], params).network
     stacked = jax.tree.map(lambda *xs: jax.numpy.stack(xs), *[r[1] for r in runs])
-    return BandwidthAgents(network, stacked, tuple(r[0] for r in runs), curves={})
+    return BandwidthAgents(network, stacked, tuple(r[0] for r in runs), curves={}, shield_margin=margins.pop())
 
 
 def save_runs(agents, config, args, out: Path):

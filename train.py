@@ -47,6 +47,9 @@ def parse_args(argv=None):
     p.add_argument("--lr", type=float, default=d.lr)
     p.add_argument("--steps-per-chunk", type=int, default=d.steps_per_chunk, help="vmapped env steps per chunk")
     p.add_argument("--learning-starts", type=int, default=d.learning_starts, help="random transitions before learning")
+    p.add_argument("--shield-margin", type=float, default=d.shield_margin,
+                   help="seconds of slack of the BS's return-home shield (docs/ddqn.md; default: %(default)s)")
+    p.add_argument("--no-shield", action="store_true", help="train and evaluate without the return-home shield")
     p.add_argument("--segments", type=int, default=10, help="host-level segments (progress + checkpoint each)")
     p.add_argument("--max-segments", type=int, default=None,
                    help="stop after this many segments in this session (continue later with --resume)")
@@ -73,7 +76,8 @@ def run_config(args) -> dict:
 
     cfg = DDQNConfig(total_steps=args.total_steps, num_envs=args.num_envs, batch_size=args.batch_size,
                      gamma=args.gamma, lr=args.lr, steps_per_chunk=args.steps_per_chunk,
-                     learning_starts=args.learning_starts)
+                     learning_starts=args.learning_starts,
+                     shield_margin=None if args.no_shield else args.shield_margin)
     return {"scenario": args.scenario, "reward_mode": args.reward_mode, "bandwidth": args.bandwidth, "kappa_c": args.kappa_c,
             "seeds": args.seeds, "seed": args.seed, "segments": args.segments, "curves": args.curves,
             "ddqn": cfg.to_dict()}
@@ -216,7 +220,7 @@ def main(argv=None) -> int:
         reference = baseline_results(eval_keys, params)
         for s in range(cfg["seeds"]):
             net = jax.tree.map(lambda x: x[s], state.params)
-            res = compare(trainer.network, net, eval_keys, params, reference)
+            res = compare(trainer.network, net, eval_keys, params, reference, config.shield_margin)
             report["seeds"].append(res)
             line = "  ".join(f"{k} {v['mean_psnr'][0]:.2f}±{v['mean_psnr'][1]:.2f}" for k, v in res.items()
                              if isinstance(v, dict))

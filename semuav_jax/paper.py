@@ -38,6 +38,7 @@ class BandwidthAgents:
     net_params: object
     bandwidths: tuple
     curves: dict  # per-chunk training metrics, (len(bandwidths), chunks) arrays
+    shield_margin: float | None  # of the return-home shield that filters their actions (None: off)
 
 
 def train_over_bandwidth(
@@ -68,12 +69,13 @@ def train_over_bandwidth(
             progress(n)
     curves = {k: np.concatenate([h[k] for h in history], axis=1)[:n_agents] for k in history[0]}
     net_params = jax.tree.map(lambda x: x[:n_agents], state.params)
-    return BandwidthAgents(make_train(config, params).network, net_params, tuple(bandwidths), curves)
+    network = make_train(config, params).network
+    return BandwidthAgents(network, net_params, tuple(bandwidths), curves, config.shield_margin)
 
 
 def ddqn_sweep(agents: BandwidthAgents, keys, params: EnvParams) -> dict:
     """Metrics (len(bandwidths), E) of each agent's greedy policy at its own bandwidth."""
-    policy = greedy_policy(agents.network)
+    policy = greedy_policy(agents.network, agents.shield_margin)
     E = len(keys)
     skeys = shard_episodes(keys)
 
@@ -98,7 +100,7 @@ def trajectories(agents: BandwidthAgents, agent_index: int, params: EnvParams, k
     """Positions (slots + 1, 2) and final metrics of DDQN, greedy and TSP on the episode of ``key``."""
     keys = key[None]
     net = jax.tree.map(lambda x: x[agent_index], agents.net_params)
-    runs = {"DDQN": rollout(greedy_policy(agents.network), keys, params, policy_state=net, state_axes=None, trace=True)}
+    runs = {"DDQN": rollout(greedy_policy(agents.network, agents.shield_margin), keys, params, policy_state=net, state_axes=None, trace=True)}
     for name in ("greedy", "tsp"):
         rank = baselines.tsp_ranks(keys, params) if name == "tsp" else np.arange(params.N)[None]
         state = jax.vmap(baselines.init_state, (None, 0))(jnp.float32(baselines.DEFAULT_V_B), jnp.asarray(rank))

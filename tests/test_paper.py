@@ -29,11 +29,6 @@ def sweep():
     return params, agents, run(), run()
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known (issues 3 and 6): the shipped DeepJSCC mean curve sags 0.4 dB past k = 160, so at 25 -> 40 kHz "
-    "the baselines' PSNR drops by ~0.08 dB; with monotone curves it rises (tests/test_baselines_eval.py)",
-)
 def test_baselines_psnr_rises_with_bandwidth(sweep):
     _, _, res, _ = sweep
     for name in ("greedy", "tsp"):
@@ -47,15 +42,12 @@ def test_baselines_arrive(sweep):
         assert res[name]["arrived"].mean() >= 0.99, name
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known (issue 6): the shipped agent, trained at 20 kHz, fine-tuned briefly at 5 kHz lingers and "
-    "misses the deadline (arrival 0-60 % over seeds); 320 k steps reached 97 % in one run, not reliably",
-)
 def test_briefly_trained_agents_arrive(sweep):
     _, _, res, _ = sweep
+    """The return-home shield (docs/ddqn.md) brings them home even after a brief fine-tune at
+    5 kHz, where the unshielded agent lingered and arrived in 0-60 % of the episodes."""
     arrived = res["DDQN"]["arrived"].mean(-1)
-    assert np.all(arrived >= 0.9), arrived
+    assert np.all(arrived >= 0.99), arrived
 
 
 def test_identical_under_fixed_key(sweep):

@@ -9,7 +9,9 @@ linearly with the step counter, and the target network is synced every ``target_
 chunks by a ``jnp.where`` blend (a select, cheap for ~40 k parameters).
 
 Network and optimiser follow the paper: MLP 128-128-64 with ReLU, one Q-value per action
-(MODEL.md section 6), Adam, replay memory of 50 000 transitions. The default learning rate is
+(MODEL.md section 6), Adam, replay memory of 50 000 transitions. Unless ``shield_margin`` is
+None, the BS's return-home shield (``agents/shield.py``) filters every action, exploratory ones
+included, and the memory stores the action sent. The default learning rate is
 2.5e-4 rather than the paper's 5e-5, which learns too slowly for a 10-minute CPU budget
 (docs/ddqn.md).
 """
@@ -26,6 +28,7 @@ import optax
 from flax import struct
 
 from semuav_jax.actions import action_to_accel
+from semuav_jax.agents.shield import shield
 from semuav_jax.env import reset_state, transition
 from semuav_jax.metrics import episode_metrics
 from semuav_jax.observation import DEVICE_FEATURES, GLOBAL_FEATURES, obs_size, observation
@@ -53,6 +56,7 @@ class DDQNConfig:
     max_grad_norm: float = 10.0
     hidden: tuple = (128, 128, 64)
     sorted_devices: bool = True
+    shield_margin: float | None = 2.0
 
     def __post_init__(self):
         ints = ("num_envs", "total_steps", "steps_per_chunk", "updates_per_step", "batch_size",
@@ -72,6 +76,8 @@ class DDQNConfig:
             raise ValueError(f"eps_decay_frac must be in (0, 1], got {self.eps_decay_frac}")
         if not 0.0 <= self.gamma <= 1.0:
             raise ValueError(f"gamma must be in [0, 1], got {self.gamma}")
+        if self.shield_margin is not None and not self.shield_margin >= 0:
+            raise ValueError(f"shield_margin must be >= 0 seconds or None (no shield), got {self.shield_margin}")
         if self.lr <= 0 or self.reward_scale <= 0:
             raise ValueError("lr and reward_scale must be > 0")
         if self.num_chunks < 1:
@@ -267,6 +273,8 @@ def make_train(config: DDQNConfig, env_params: EnvParams) -> Trainer:
         greedy = jnp.argmax(network.apply(ts.params, ts.obs), axis=-1)
         rand = jax.random.randint(k_rand, (E,), 0, n_act)
         action = jnp.where(jax.random.uniform(k_eps, (E,)) < eps, rand, greedy)
+        if config.shield_margin is not None:
+            action = jax.vmap(shield, (0, 0, None, None))(action, ts.env_state, env_params, config.shield_margin)
         obs, next_obs, state, rew, done, met = env_step(k_env, ts.env_state, action)
         tr = Transition(ts.obs, action, rew * config.reward_scale, next_obs, done.astype(jnp.float32))
         ts = ts.replace(replay=replay_add(ts.replay, tr), env_state=state, obs=obs)

@@ -15,25 +15,29 @@ from baselines import DEFAULT_V_B
 from baselines import evaluate as baseline_evaluate
 from baselines import run as baseline_run
 from semuav_jax.actions import action_to_accel
+from semuav_jax.agents.shield import shield
 from semuav_jax.observation import observation
 from semuav_jax.params import EnvParams, validate_params
 
 
 @functools.lru_cache(maxsize=None)
-def greedy_policy(network):
-    """Rollout policy ``(net_params, env_state, params) -> (accel, net_params)``: argmax Q of the observation."""
+def greedy_policy(network, shield_margin: float | None = None):
+    """Rollout policy ``(net_params, env_state, params) -> (accel, net_params)``: argmax Q of the
+    observation, through the return-home shield unless ``shield_margin`` is None."""
 
     def policy(net_params, state, params: EnvParams):
         a = jax.numpy.argmax(network.apply(net_params, observation(state, params)))
+        if shield_margin is not None:
+            a = shield(a, state, params, shield_margin)
         return action_to_accel(a, params), net_params
 
     return policy
 
 
-def evaluate_agent(network, net_params, keys, params: EnvParams) -> dict:
+def evaluate_agent(network, net_params, keys, params: EnvParams, shield_margin: float | None = None) -> dict:
     """Metrics (dict of (E,) NumPy arrays) of the greedy policy of ``net_params`` on episodes ``keys``."""
     validate_params(params)
-    policy = greedy_policy(network)
+    policy = greedy_policy(network, shield_margin)
     return jax.tree.map(np.asarray, baseline_run(policy, keys, params, net_params, state_axes=None))
 
 
@@ -49,7 +53,9 @@ def baseline_results(keys, params: EnvParams, baselines=("greedy", "tsp"), v_b=N
     return {b: baseline_evaluate(b, keys, params, v_b=v_b) for b in baselines}
 
 
-def compare(network, net_params, keys, params: EnvParams, reference: dict | None = None) -> dict:
+def compare(
+    network, net_params, keys, params: EnvParams, reference: dict | None = None, shield_margin: float | None = None
+) -> dict:
     """Mean PSNR of the agent and of each baseline on the same episodes, with paired margins.
 
     ``reference`` is :func:`baseline_results` on the same ``keys`` (computed here when None).
@@ -57,7 +63,7 @@ def compare(network, net_params, keys, params: EnvParams, reference: dict | None
     per-episode difference agent - baseline (same layout, delays and images).
     """
     reference = baseline_results(keys, params) if reference is None else reference
-    agent = evaluate_agent(network, net_params, keys, params)
+    agent = evaluate_agent(network, net_params, keys, params, shield_margin)
     out = {}
     for name, m in {"ddqn": agent, **reference}.items():
         out[name] = {k: mean_ci(m[k]) for k in ("mean_psnr", "coverage", "arrived", "mission_time")}

@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from semuav_jax.jscc.train import TrainConfig
+from semuav_jax.jscc.train import CHANNELS, TrainConfig
 
 
 def _train(a) -> None:
@@ -30,7 +30,8 @@ def _train(a) -> None:
     else:
         cfg = TrainConfig(
             steps=a.steps, batch=a.batch, lr=a.lr, snr_db=a.snr_db, width=a.width, seed=a.seed,
-            monotone_weight=a.monotone_weight, monotone_margin=a.monotone_margin,
+            monotone_weight=a.monotone_weight, monotone_margin=a.monotone_margin, monotone_gap=a.monotone_gap,
+            channel=a.channel,
             init_from=str(a.init_from) if a.init_from else None,
         )
     if a.minutes is not None and not a.minutes > 0:
@@ -74,6 +75,10 @@ def main(argv=None) -> int:
     t.add_argument("--monotone-weight", type=float, default=d.monotone_weight,
                    help="weight of the hinge that makes loss(k2) <= loss(k1) for prefixes k1 < k2 (0: plain loss)")
     t.add_argument("--monotone-margin", type=float, default=d.monotone_margin, help="margin of that hinge (dB)")
+    t.add_argument("--monotone-gap", type=int, default=d.monotone_gap,
+                   help="half of the hinge's pairs have k2 - k1 uniform in 1..this")
+    t.add_argument("--channel", choices=CHANNELS, default=d.channel,
+                   help="training channel: AWGN at --snr-db, or noise-free 8-bit I/Q as in the curves")
     t.add_argument("--images", default=None, help="train on the images of this folder instead")
     t.add_argument("--cifar10", default=None, help="train on CIFAR-10 python batches in this folder instead")
     t.set_defaults(func=_train)

@@ -51,12 +51,16 @@ def truncate(s: jax.Array, k: jax.Array) -> jax.Array:
     return power_normalize(s, prefix_mask(k, s.shape[-1]))
 
 
-def awgn(key: jax.Array, s: jax.Array, snr_db: float, mask: jax.Array) -> jax.Array:
-    """Add complex AWGN of variance 10^(-snr/10) to the transmitted (masked) symbols only."""
+def complex_noise(key: jax.Array, shape, snr_db: float) -> jax.Array:
+    """Circular complex Gaussian noise of variance 10^(-snr/10) (unit signal power)."""
     sigma = jnp.sqrt(10.0 ** (-snr_db / 10.0) / 2.0)
     kr, ki = jax.random.split(key)
-    noise = sigma * (jax.random.normal(kr, s.shape) + 1j * jax.random.normal(ki, s.shape))
-    return jnp.where(mask, s + noise, 0.0)
+    return sigma * (jax.random.normal(kr, shape) + 1j * jax.random.normal(ki, shape))
+
+
+def awgn(key: jax.Array, s: jax.Array, snr_db: float, mask: jax.Array) -> jax.Array:
+    """Add complex AWGN of variance 10^(-snr/10) to the transmitted (masked) symbols only."""
+    return jnp.where(mask, s + complex_noise(key, s.shape, snr_db), 0.0)
 
 
 def quantize_iq(s: jax.Array, bits: int = BITS_PER_SYMBOL // 2, clip: float = IQ_CLIP) -> jax.Array:

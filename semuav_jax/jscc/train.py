@@ -37,11 +37,12 @@ from flax import serialization
 
 from semuav_jax.io import atomic_write
 from semuav_jax.jscc.data import sample_batch
-from semuav_jax.jscc.model import IMAGE_SHAPE, M, DeepJSCC, prefix_mask, truncate
+from semuav_jax.jscc.model import IMAGE_SHAPE, M, DeepJSCC, complex_noise, prefix_mask, quantize_iq, truncate
 
 CKPT_FILE = "checkpoint.msgpack"
 MSE_FLOOR = 1e-4
 CONFIG_FILE = "config.json"
+CHANNELS = ("awgn", "quantized")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -56,10 +57,14 @@ class TrainConfig:
     seed: int = 0
     monotone_weight: float = 0.0
     monotone_margin: float = 0.0
+    monotone_gap: int = 32
+    channel: str = "awgn"
     init_from: str | None = None
 
     def validate(self) -> None:
-        for name in ("steps", "batch", "width"):
+        if self.channel not in CHANNELS:
+            raise ValueError(f"channel must be one of {CHANNELS}, got {self.channel!r}")
+        for name in ("steps", "batch", "width", "monotone_gap"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)}")
         if not self.lr > 0:
@@ -95,6 +100,20 @@ def start_params(cfg: TrainConfig):
     return params
 
 
+def transmit(cfg: TrainConfig, s: jax.Array, k: jax.Array, key: jax.Array, copies: int = 1) -> jax.Array:
+    """Received symbols of ``copies`` stacked transmissions of ``s`` (B, M), copy j keeping the
+    first ``k[j*B + b]`` symbols, renormalized, through ``cfg.channel`` (AWGN at ``snr_db``, the
+    same noise in every copy; or the noise-free 8-bit I/Q quantizer of the curves, with a
+    straight-through gradient); the tail is zero-padded."""
+    mask = prefix_mask(k, s.shape[-1])
+    tx = truncate(jnp.tile(s, (copies, 1)), k)
+    if cfg.channel == "awgn":
+        rx = tx + jnp.tile(complex_noise(key, s.shape, cfg.snr_db), (copies, 1))
+    else:
+        rx = tx + jax.lax.stop_gradient(quantize_iq(tx) - tx)
+    return jnp.where(mask, rx, 0.0)
+
+
 def _log_mse(y, x):
     return 10.0 * jnp.log10(jnp.mean((y - x) ** 2, axis=(1, 2, 3)) + MSE_FLOOR)
 
@@ -106,9 +125,9 @@ def make_train_step(cfg: TrainConfig):
     opt = make_optimizer(cfg)
 
     def loss_fn(params, x, k, key):
-        y = model.apply({"params": params}, x, k, key, cfg.snr_db)
-        mse = jnp.mean((y - x) ** 2, axis=(1, 2, 3))
-        return 10.0 * jnp.mean(jnp.log10(mse + MSE_FLOOR))
+        s = model.apply({"params": params}, x, method=DeepJSCC.encode)
+        y = model.apply({"params": params}, transmit(cfg, s, k, key), method=DeepJSCC.decode)
+        return jnp.mean(_log_mse(y, x))
 
     @jax.jit
     def step(params, opt_state, x, key):
@@ -122,11 +141,7 @@ def make_train_step(cfg: TrainConfig):
     def mono_loss_fn(params, x, k1, k2, key):
         s = model.apply({"params": params}, x, method=DeepJSCC.encode)
         k = jnp.concatenate([k1, k2])
-        mask = prefix_mask(k)
-        sigma = jnp.sqrt(10.0 ** (-cfg.snr_db / 10.0) / 2.0)
-        kr, ki = jax.random.split(key)
-        noise = sigma * (jax.random.normal(kr, s.shape) + 1j * jax.random.normal(ki, s.shape))
-        rx = jnp.where(mask, truncate(jnp.concatenate([s, s]), k) + jnp.concatenate([noise, noise]), 0.0)
+        rx = transmit(cfg, s, k, key, copies=2)
         y = model.apply({"params": params}, rx, method=DeepJSCC.decode)
         l1, l2 = jnp.split(_log_mse(y, jnp.concatenate([x, x])), 2)
         hinge = jax.nn.relu(l2 - l1 + cfg.monotone_margin)
@@ -138,7 +153,7 @@ def make_train_step(cfg: TrainConfig):
         b = x.shape[0]
         c = jax.random.split(kk, 5)
         k2 = jnp.where(jax.random.bernoulli(c[0], 0.25, (b,)), M, jax.random.randint(c[1], (b,), 1, M + 1))
-        near = jnp.maximum(k2 - jax.random.randint(c[2], (b,), 1, 33), 0)
+        near = jnp.maximum(k2 - jax.random.randint(c[2], (b,), 1, cfg.monotone_gap + 1), 0)
         far = jax.random.randint(c[3], (b,), 0, k2)
         k1 = jnp.where(jax.random.bernoulli(c[4], 0.5, (b,)), near, far)
         loss, grads = jax.value_and_grad(mono_loss_fn)(params, x, k1, k2, kn)

@@ -1,0 +1,64 @@
+"""The BS's return-home shield around the DDQN's action choice (docs/ddqn.md, "Shield").
+
+An agent that hovers too long misses the destination (MODEL.md section 3, step 6; r_miss of
+section 4). The BS knows the UAV's state, so before sending the agent's command it checks
+whether the time left still covers a conservative flight home; when it no longer does, it sends
+instead the table action (eq. 6.1) nearest to the section-7 speed controller aimed at q_fin (at
+v_max, slowing down near q_fin). The same shield acts in training (the replay memory stores the
+action that was sent) and in evaluation, so it is part of the policy, not a change of the
+environment.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from baselines.controller import speed_command
+from semuav_jax.actions import action_table
+from semuav_jax.params import EnvParams
+
+
+def home_speed(params: EnvParams):
+    """The cruise speed assumed on the way home: the command aims at v_max, but the nearest table action
+    leaves a velocity error of up to half a level step (a_max tau / (levels - 1)) on each axis."""
+    dead = jnp.sqrt(2.0) * params.a_max * params.tau / max(params.levels - 1, 1)
+    return jnp.maximum(params.v_max - dead, 0.5 * params.v_max)
+
+
+def approach_speed(dist, params: EnvParams):
+    """Speed the home command aims at, ``dist`` metres from q_fin: v_max, capped near q_fin at
+    sqrt(a_max dist) so that braking takes half of a_max and the rest can steer onto q_fin (at
+    full speed the turn radius v_max^2 / a_max = 125 m makes the UAV circle a 15 m disk)."""
+    return jnp.minimum(params.v_max, jnp.sqrt(params.a_max * dist))
+
+
+def time_home(q, v, params: EnvParams):
+    """Conservative seconds to reach the arrival disk from (q, v) under :func:`home_action`.
+
+    Stop first (max |v_i| / a_max, drifting at most |v|^2 / (2 a_max) further away), accelerate
+    to the home speed (v_home / a_max, counted without progress), cruise at the home speed, and
+    brake along sqrt(a_max d) over the last v_home^2 / a_max metres down to r_arr.
+    """
+    a, r = params.a_max, params.r_arr
+    v_home = home_speed(params)
+    d = jnp.linalg.norm(params.q_fin - q) + jnp.sum(v * v) / (2.0 * a)
+    d0 = v_home * v_home / a
+    brake = 2.0 * (jnp.sqrt(jnp.clip(d, r, d0)) - jnp.sqrt(r)) / jnp.sqrt(a)
+    cruise = jnp.maximum(d - d0, 0.0) / v_home
+    return jnp.max(jnp.abs(v)) / a + v_home / a + cruise + brake
+
+
+def home_action(q, v, params: EnvParams):
+    """Index of the table action nearest to the speed controller's command towards q_fin at
+    :func:`approach_speed`."""
+    dist = jnp.linalg.norm(params.q_fin - q)
+    a = speed_command(q, v, params.q_fin, approach_speed(dist, params), params)
+    return jnp.argmin(jnp.sum((action_table(params) - a) ** 2, axis=-1))
+
+
+def shield(action, state, params: EnvParams, margin):
+    """The action the BS sends: ``action``, or :func:`home_action` once the time left after this
+    slot, (K - t - 1) tau, is at most :func:`time_home` + ``margin`` seconds."""
+    left = (params.K - state.t - 1) * params.tau
+    late = left <= time_home(state.q, state.v, params) + margin
+    return jnp.where(late, home_action(state.q, state.v, params), action)

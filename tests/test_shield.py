@@ -1,0 +1,110 @@
+"""The BS's return-home shield (semuav_jax/agents/shield.py, docs/ddqn.md "Shield")."""
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from semuav_jax.actions import action_to_accel
+from semuav_jax.agents.ddqn import DDQNConfig, make_train
+from semuav_jax.agents.shield import home_action, home_speed, shield, time_home
+from semuav_jax.env import reset_state
+from semuav_jax.rollout import episode
+
+
+def _time_home_by_hand(dist, v, v_home, a=5.0, r=15.0):
+    d = dist + (v[0] ** 2 + v[1] ** 2) / (2 * a)  # stop first, drifting this far away
+    d0 = v_home**2 / a  # where the braking profile sqrt(a d) reaches the home speed
+    brake = 2 * (np.sqrt(np.clip(d, r, d0)) - np.sqrt(r)) / np.sqrt(a)
+    return max(abs(v[0]), abs(v[1])) / a + v_home / a + max(d - d0, 0.0) / v_home + brake
+
+
+def test_time_home_by_hand(params):
+    # home speed 25 - sqrt(2) * 5 * 0.5 / 2 = 23.232 m/s (half a level step of error per axis)
+    v_home = 25.0 - np.sqrt(2.0) * 1.25
+    assert float(home_speed(params)) == pytest.approx(v_home, rel=1e-6)
+    # at rest at the BS (500, 300), 500 m from q_fin = (1000, 300): 4.646 + 16.876 + 5.829 s
+    t = time_home(jnp.array([500.0, 300.0]), jnp.zeros(2), params)
+    assert float(t) == pytest.approx(27.351, abs=1e-3)
+    assert float(t) == pytest.approx(_time_home_by_hand(500.0, (0.0, 0.0), v_home), rel=1e-5)
+    # flying away: 4 s to stop, 50 m further
+    t = time_home(jnp.array([500.0, 300.0]), jnp.array([10.0, -20.0]), params)
+    assert float(t) == pytest.approx(_time_home_by_hand(500.0, (10.0, -20.0), v_home), rel=1e-5)
+    # inside the arrival disk at rest: only the acceleration term is left
+    assert float(time_home(jnp.array([990.0, 300.0]), jnp.zeros(2), params)) == pytest.approx(v_home / 5.0)
+
+
+def test_home_action_points_home(params):
+    # levels = 3: action i = (lv[i // 3], lv[i % 3]), lv = (-5, 0, 5); at rest at q0 the controller wants +x
+    assert int(home_action(jnp.array([0.0, 300.0]), jnp.zeros(2), params)) == 7
+    # above q_fin's line, flying +x at 22 m/s: the x error rounds to 0, steer down in y
+    assert int(home_action(jnp.array([500.0, 560.0]), jnp.array([22.0, 0.0]), params)) == 3
+    # 10 m before q_fin at 20 m/s: the approach speed is sqrt(5 * 10) = 7 m/s, so brake in x
+    assert int(home_action(jnp.array([990.0, 300.0]), jnp.array([20.0, 0.0]), params)) == 1
+
+
+def test_shield_overrides_only_when_late(params):
+    s = reset_state(jax.random.key(0), params)  # t = 0 at q0: 125 s left, 49 s needed
+    for a in range(params.num_actions):
+        assert int(shield(jnp.int32(a), s, params, 2.0)) == a
+    late = s.replace(t=jnp.int32(params.K - 60))  # 29.5 s left after this slot
+    for a in range(params.num_actions):
+        assert int(shield(jnp.int32(a), late, params, 2.0)) == 7
+    # the boundary: time left after the slot equals time_home + margin
+    need = float(time_home(s.q, s.v, params)) + 2.0
+    t_edge = int(np.ceil(params.K - 1 - need / params.tau))
+    assert int(shield(jnp.int32(0), s.replace(t=jnp.int32(t_edge)), params, 2.0)) == 7
+    assert int(shield(jnp.int32(0), s.replace(t=jnp.int32(t_edge - 1)), params, 2.0)) == 0
+
+
+def _shielded_random_policy(margin):
+    def policy(draws, state, params):
+        a = shield(draws[jnp.minimum(state.t, params.K - 1)], state, params, margin)
+        return action_to_accel(a, params), draws
+
+    return policy
+
+
+def test_any_policy_arrives_with_the_shield(params):
+    """Random action sequences (and every constant action) arrive in every episode, over random
+    bandwidths, speed caps and acceleration bounds; without the shield most do not."""
+    E = 256
+    ks = jax.random.split(jax.random.key(3), 6)
+    draws = jax.random.randint(ks[0], (E, params.K), 0, params.num_actions)
+    const = jnp.repeat(jnp.arange(E) % params.num_actions, params.K).reshape(E, params.K)
+    draws = jnp.where((jnp.arange(E) < E // 2)[:, None], draws, const)
+    B = jax.random.uniform(ks[1], (E,), minval=2e3, maxval=50e3)
+    v_max = jax.random.uniform(ks[2], (E,), minval=12.0, maxval=30.0)
+    a_max = jax.random.uniform(ks[3], (E,), minval=2.0, maxval=8.0)
+    keys = jax.random.split(ks[4], E)
+
+    def one(margin):
+        def ep(k, d, b, v, a):
+            p = params.replace(B=b, v_max=v, a_max=a)
+            return episode(_shielded_random_policy(margin), k, p, policy_state=d)[0]["arrived"]
+
+        return np.asarray(jax.jit(jax.vmap(ep))(keys, draws, B, v_max, a_max))
+
+    assert one(2.0).all()
+    assert one(-1e9).mean() < 0.5  # a margin of -inf never overrides: the same policies mostly miss
+
+
+def test_training_stores_shielded_actions(params):
+    """With epsilon = 1 throughout, every training episode still arrives when the shield is on."""
+    base = DDQNConfig(num_envs=16, total_steps=16 * 250 * 2, steps_per_chunk=250, learning_starts=128,
+                      batch_size=32, buffer_size=8_000, eps_start=1.0, eps_end=1.0)
+    out = {}
+    for margin in (2.0, None):
+        tr = make_train(dataclasses.replace(base, shield_margin=margin), params)
+        _, metrics = jax.jit(tr.train)(jax.random.key(0))
+        assert float(metrics["episodes"].sum()) > 0
+        out[margin] = float((metrics["arrived"] * metrics["episodes"]).sum() / metrics["episodes"].sum())
+    assert out[2.0] == 1.0
+    assert out[None] < 0.5
+
+
+def test_config_rejects_negative_margin():
+    with pytest.raises(ValueError, match="shield_margin"):
+        DDQNConfig(shield_margin=-1.0)
