@@ -14,26 +14,33 @@ from semuav_jax.env import reset_state
 from semuav_jax.rollout import episode
 
 
-def _time_home_by_hand(dist, v, v_home, a=5.0, r=15.0):
-    d = dist + (v[0] ** 2 + v[1] ** 2) / (2 * a)  # stop first, drifting this far away
+def _time_home_by_hand(q, v, v_home, a=5.0, r=15.0, q_fin=(1000.0, 300.0)):
+    diff = np.subtract(q_fin, q)
+    dist = np.linalg.norm(diff)
+    u = diff / dist
+    along = np.dot(v, u)
+    side = np.subtract(v, along * u)
+    d = dist + (side @ side + min(along, 0.0) ** 2) / (2 * a)  # drift while turning
     d0 = v_home**2 / a  # where the braking profile sqrt(a d) reaches the home speed
     brake = 2 * (np.sqrt(np.clip(d, r, d0)) - np.sqrt(r)) / np.sqrt(a)
-    return max(abs(v[0]), abs(v[1])) / a + v_home / a + max(d - d0, 0.0) / v_home + brake
+    return np.max(np.abs(v_home * u - np.asarray(v))) / a + max(d - d0, 0.0) / v_home + brake
 
 
 def test_time_home_by_hand(params):
     # home speed 25 - sqrt(2) * 5 * 0.5 / 2 = 23.232 m/s (half a level step of error per axis)
     v_home = 25.0 - np.sqrt(2.0) * 1.25
     assert float(home_speed(params)) == pytest.approx(v_home, rel=1e-6)
-    # at rest at the BS (500, 300), 500 m from q_fin = (1000, 300): 4.646 + 16.876 + 5.829 s
-    t = time_home(jnp.array([500.0, 300.0]), jnp.zeros(2), params)
-    assert float(t) == pytest.approx(27.351, abs=1e-3)
-    assert float(t) == pytest.approx(_time_home_by_hand(500.0, (0.0, 0.0), v_home), rel=1e-5)
-    # flying away: 4 s to stop, 50 m further
-    t = time_home(jnp.array([500.0, 300.0]), jnp.array([10.0, -20.0]), params)
-    assert float(t) == pytest.approx(_time_home_by_hand(500.0, (10.0, -20.0), v_home), rel=1e-5)
-    # inside the arrival disk at rest: only the acceleration term is left
-    assert float(time_home(jnp.array([990.0, 300.0]), jnp.zeros(2), params)) == pytest.approx(v_home / 5.0)
+    th = lambda q, v: float(time_home(jnp.array(q), jnp.array(v), params))
+    # at rest at the BS (500, 300), 500 m from q_fin = (1000, 300): turn 4.646 + cruise 16.876 + brake 5.829 s
+    assert th([500.0, 300.0], [0.0, 0.0]) == pytest.approx(27.351, abs=1e-3)
+    # already flying home at the home speed: no turn, no drift
+    assert th([500.0, 300.0], [v_home, 0.0]) == pytest.approx(22.705, abs=1e-3)
+    # flying sideways and away: turn 4 s while drifting 20^2 / 10 = 40 m further
+    assert th([500.0, 300.0], [10.0, -20.0]) == pytest.approx(4.0 + (540.0 - v_home**2 / 5) / v_home + 5.829, abs=1e-3)
+    for q, v in (([120.0, 40.0], [-20.0, 7.0]), ([980.0, 330.0], [15.0, 20.0]), ([700.0, 590.0], [3.0, 1.0])):
+        assert th(q, v) == pytest.approx(_time_home_by_hand(q, v, v_home), rel=1e-5)
+    # inside the arrival disk at rest: only the turn (acceleration) term is left
+    assert th([990.0, 300.0], [0.0, 0.0]) == pytest.approx(v_home / 5.0)
 
 
 def test_home_action_points_home(params):

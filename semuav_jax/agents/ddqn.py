@@ -47,7 +47,7 @@ class DDQNConfig:
     buffer_size: int = 50_000
     learning_starts: int = 10_000
     lr: float = 2.5e-4
-    gamma: float = 0.99
+    gamma: float = 0.999
     eps_start: float = 1.0
     eps_end: float = 0.02
     eps_decay_frac: float = 0.5

@@ -1,6 +1,6 @@
-"""The shipped DDQN agent: random layouts, gain reward, B = 20 kHz, trained by ``python train.py
---scenario random`` on the shipped DeepJSCC curves (docs/ddqn.md). ``eval.py --quick`` fine-tunes
-it per bandwidth instead of training from scratch."""
+"""The shipped DDQN agent: random layouts, gain reward, B = 20 kHz, gamma 0.999, return-home
+shield, 3 M steps on the shipped DeepJSCC curves (``ddqn_random.json`` says how; docs/ddqn.md).
+``eval.py --quick`` fine-tunes it per bandwidth instead of training from scratch."""
 
 from __future__ import annotations
 

@@ -35,17 +35,24 @@ def approach_speed(dist, params: EnvParams):
 def time_home(q, v, params: EnvParams):
     """Conservative seconds to reach the arrival disk from (q, v) under :func:`home_action`.
 
-    Stop first (max |v_i| / a_max, drifting at most |v|^2 / (2 a_max) further away), accelerate
-    to the home speed (v_home / a_max, counted without progress), cruise at the home speed, and
+    Turn the velocity onto the home course at a_max per axis (max_i |v_home u_i - v_i| / a_max,
+    counted without progress), while drifting up to w^2 / (2 a_max) further for every velocity
+    component w that does not point home (sideways, or away); then cruise at the home speed and
     brake along sqrt(a_max d) over the last v_home^2 / a_max metres down to r_arr.
     """
     a, r = params.a_max, params.r_arr
     v_home = home_speed(params)
-    d = jnp.linalg.norm(params.q_fin - q) + jnp.sum(v * v) / (2.0 * a)
+    diff = params.q_fin - q
+    dist = jnp.linalg.norm(diff)
+    u = diff / jnp.maximum(dist, 1e-6)
+    along = jnp.dot(v, u)
+    side = v - along * u
+    drift = (jnp.sum(side * side) + jnp.minimum(along, 0.0) ** 2) / (2.0 * a)
+    d = dist + drift
     d0 = v_home * v_home / a
     brake = 2.0 * (jnp.sqrt(jnp.clip(d, r, d0)) - jnp.sqrt(r)) / jnp.sqrt(a)
     cruise = jnp.maximum(d - d0, 0.0) / v_home
-    return jnp.max(jnp.abs(v)) / a + v_home / a + cruise + brake
+    return jnp.max(jnp.abs(v_home * u - v)) / a + cruise + brake
 
 
 def home_action(q, v, params: EnvParams):
