@@ -20,9 +20,11 @@ def _time_home_by_hand(q, v, v_home, a=5.0, r=15.0, q_fin=(1000.0, 300.0)):
     u = diff / dist
     along = np.dot(v, u)
     side = np.subtract(v, along * u)
-    d = dist + (side @ side + min(along, 0.0) ** 2) / (2 * a)  # drift while turning
-    d0 = v_home**2 / a  # where the braking profile sqrt(a d) reaches the home speed
-    brake = 2 * (np.sqrt(np.clip(d, r, d0)) - np.sqrt(r)) / np.sqrt(a)
+    c = 2 * 0.25 * a  # the approach brakes with a quarter of a_max
+    over = max(along**2 - min(25.0**2, c * dist), 0.0)  # faster than the approach speed sqrt(c d)
+    d = dist + (side @ side + min(along, 0.0) ** 2 + 2 * over) / (2 * a)  # drift while turning
+    d0 = v_home**2 / c  # where the braking profile sqrt(c d) reaches the home speed
+    brake = 2 * (np.sqrt(np.clip(d, r, d0)) - np.sqrt(r)) / np.sqrt(c)
     return np.max(np.abs(v_home * u - np.asarray(v))) / a + max(d - d0, 0.0) / v_home + brake
 
 
@@ -31,13 +33,17 @@ def test_time_home_by_hand(params):
     v_home = 25.0 - np.sqrt(2.0) * 1.25
     assert float(home_speed(params)) == pytest.approx(v_home, rel=1e-6)
     th = lambda q, v: float(time_home(jnp.array(q), jnp.array(v), params))
-    # at rest at the BS (500, 300), 500 m from q_fin = (1000, 300): turn 4.646 + cruise 16.876 + brake 5.829 s
-    assert th([500.0, 300.0], [0.0, 0.0]) == pytest.approx(27.351, abs=1e-3)
+    # at rest at the BS (500, 300), 500 m from q_fin = (1000, 300): turn 4.646 s, cruise
+    # (500 - 215.89) / 23.232 = 12.229 s, brake 2 (sqrt(215.89) - sqrt(15)) / sqrt(2.5) = 13.687 s
+    assert th([500.0, 300.0], [0.0, 0.0]) == pytest.approx(30.562, abs=1e-3)
     # already flying home at the home speed: no turn, no drift
-    assert th([500.0, 300.0], [v_home, 0.0]) == pytest.approx(22.705, abs=1e-3)
+    assert th([500.0, 300.0], [v_home, 0.0]) == pytest.approx(25.916, abs=1e-3)
     # flying sideways and away: turn 4 s while drifting 20^2 / 10 = 40 m further
-    assert th([500.0, 300.0], [10.0, -20.0]) == pytest.approx(4.0 + (540.0 - v_home**2 / 5) / v_home + 5.829, abs=1e-3)
-    for q, v in (([120.0, 40.0], [-20.0, 7.0]), ([980.0, 330.0], [15.0, 20.0]), ([700.0, 590.0], [3.0, 1.0])):
+    assert th([500.0, 300.0], [10.0, -20.0]) == pytest.approx(4.0 + (540.0 - 215.89) / v_home + 13.687, abs=1e-3)
+    # 50 m out at 25 m/s: faster than the approach speed sqrt(2.5 * 50) = 11.2 m/s, overshoot and back
+    assert th([950.0, 300.0], [25.0, 0.0]) > th([950.0, 300.0], [11.0, 0.0]) + 4.0  # 10.95 s vs 6.50 s
+    for q, v in (([120.0, 40.0], [-20.0, 7.0]), ([980.0, 330.0], [15.0, 20.0]), ([700.0, 590.0], [3.0, 1.0]),
+                 ([950.0, 300.0], [25.0, 0.0])):
         assert th(q, v) == pytest.approx(_time_home_by_hand(q, v, v_home), rel=1e-5)
     # inside the arrival disk at rest: only the turn (acceleration) term is left
     assert th([990.0, 300.0], [0.0, 0.0]) == pytest.approx(v_home / 5.0)
@@ -48,12 +54,12 @@ def test_home_action_points_home(params):
     assert int(home_action(jnp.array([0.0, 300.0]), jnp.zeros(2), params)) == 7
     # above q_fin's line, flying +x at 22 m/s: the x error rounds to 0, steer down in y
     assert int(home_action(jnp.array([500.0, 560.0]), jnp.array([22.0, 0.0]), params)) == 3
-    # 10 m before q_fin at 20 m/s: the approach speed is sqrt(5 * 10) = 7 m/s, so brake in x
+    # 10 m before q_fin at 20 m/s: the approach speed is sqrt(2.5 * 10) = 5 m/s, so brake in x
     assert int(home_action(jnp.array([990.0, 300.0]), jnp.array([20.0, 0.0]), params)) == 1
 
 
 def test_shield_overrides_only_when_late(params):
-    s = reset_state(jax.random.key(0), params)  # t = 0 at q0: 125 s left, 49 s needed
+    s = reset_state(jax.random.key(0), params)  # t = 0 at q0: 125 s left, 52 s needed
     for a in range(params.num_actions):
         assert int(shield(jnp.int32(a), s, params, 2.0)) == a
     late = s.replace(t=jnp.int32(params.K - 60))  # 29.5 s left after this slot

@@ -25,11 +25,14 @@ def home_speed(params: EnvParams):
     return jnp.maximum(params.v_max - dead, 0.5 * params.v_max)
 
 
+BRAKE = 0.25  # share of a_max the approach brakes with; the rest steers onto q_fin
+
+
 def approach_speed(dist, params: EnvParams):
     """Speed the home command aims at, ``dist`` metres from q_fin: v_max, capped near q_fin at
-    sqrt(a_max dist) so that braking takes half of a_max and the rest can steer onto q_fin (at
-    full speed the turn radius v_max^2 / a_max = 125 m makes the UAV circle a 15 m disk)."""
-    return jnp.minimum(params.v_max, jnp.sqrt(params.a_max * dist))
+    sqrt(2 BRAKE a_max dist), the speed from which braking at BRAKE a_max stops at q_fin. At full
+    speed the turn radius v_max^2 / a_max = 125 m would make the UAV circle the 15 m disk."""
+    return jnp.minimum(params.v_max, jnp.sqrt(2.0 * BRAKE * params.a_max * dist))
 
 
 def time_home(q, v, params: EnvParams):
@@ -37,8 +40,10 @@ def time_home(q, v, params: EnvParams):
 
     Turn the velocity onto the home course at a_max per axis (max_i |v_home u_i - v_i| / a_max,
     counted without progress), while drifting up to w^2 / (2 a_max) further for every velocity
-    component w that does not point home (sideways, or away); then cruise at the home speed and
-    brake along sqrt(a_max d) over the last v_home^2 / a_max metres down to r_arr.
+    component w that does not point home (sideways, or away), and overshooting q_fin and coming
+    back by twice (w^2 - s^2) / (2 a_max) when the speed w towards home exceeds
+    s = approach_speed; then cruise at the home speed and brake along :func:`approach_speed`
+    over the last v_home^2 / (2 BRAKE a_max) metres down to r_arr.
     """
     a, r = params.a_max, params.r_arr
     v_home = home_speed(params)
@@ -47,10 +52,12 @@ def time_home(q, v, params: EnvParams):
     u = diff / jnp.maximum(dist, 1e-6)
     along = jnp.dot(v, u)
     side = v - along * u
-    drift = (jnp.sum(side * side) + jnp.minimum(along, 0.0) ** 2) / (2.0 * a)
+    over = jnp.maximum(along * along - approach_speed(dist, params) ** 2, 0.0)  # too fast to brake in time
+    drift = (jnp.sum(side * side) + jnp.minimum(along, 0.0) ** 2 + 2.0 * over) / (2.0 * a)
     d = dist + drift
-    d0 = v_home * v_home / a
-    brake = 2.0 * (jnp.sqrt(jnp.clip(d, r, d0)) - jnp.sqrt(r)) / jnp.sqrt(a)
+    c = 2.0 * BRAKE * a
+    d0 = v_home * v_home / c
+    brake = 2.0 * (jnp.sqrt(jnp.clip(d, r, d0)) - jnp.sqrt(r)) / jnp.sqrt(c)
     cruise = jnp.maximum(d - d0, 0.0) / v_home
     return jnp.max(jnp.abs(v_home * u - v)) / a + cruise + brake
 
