@@ -273,8 +273,7 @@ def make_train(config: DDQNConfig, env_params: EnvParams) -> Trainer:
         greedy = jnp.argmax(network.apply(ts.params, ts.obs), axis=-1)
         rand = jax.random.randint(k_rand, (E,), 0, n_act)
         action = jnp.where(jax.random.uniform(k_eps, (E,)) < eps, rand, greedy)
-        if config.shield_margin is not None:
-            action = jax.vmap(shield, (0, 0, None, None))(action, ts.env_state, env_params, config.shield_margin)
+        action = jax.vmap(shield, (0, 0, None, None))(action, ts.env_state, env_params, config.shield_margin)
         obs, next_obs, state, rew, done, met = env_step(k_env, ts.env_state, action)
         tr = Transition(ts.obs, action, rew * config.reward_scale, next_obs, done.astype(jnp.float32))
         ts = ts.replace(replay=replay_add(ts.replay, tr), env_state=state, obs=obs)

@@ -27,9 +27,7 @@ def greedy_policy(network, shield_margin: float | None = None):
 
     def policy(net_params, state, params: EnvParams):
         a = jax.numpy.argmax(network.apply(net_params, observation(state, params)))
-        if shield_margin is not None:
-            a = shield(a, state, params, shield_margin)
-        return action_to_accel(a, params), net_params
+        return action_to_accel(shield(a, state, params, shield_margin), params), net_params
 
     return policy
 

@@ -70,9 +70,12 @@ def home_action(q, v, params: EnvParams):
     return jnp.argmin(jnp.sum((action_table(params) - a) ** 2, axis=-1))
 
 
-def shield(action, state, params: EnvParams, margin):
+def shield(action, state, params: EnvParams, margin: float | None):
     """The action the BS sends: ``action``, or :func:`home_action` once the time left after this
-    slot, (K - t - 1) tau, is at most :func:`time_home` + ``margin`` seconds."""
+    slot, (K - t - 1) tau, is at most :func:`time_home` + ``margin`` seconds (never when
+    ``margin`` is None: no shield)."""
+    if margin is None:
+        return action
     left = (params.K - state.t - 1) * params.tau
     late = left <= time_home(state.q, state.v, params) + margin
     return jnp.where(late, home_action(state.q, state.v, params), action)

@@ -129,14 +129,9 @@ def make_train_step(cfg: TrainConfig):
         y = model.apply({"params": params}, transmit(cfg, s, k, key), method=DeepJSCC.decode)
         return jnp.mean(_log_mse(y, x))
 
-    @jax.jit
-    def step(params, opt_state, x, key):
-        kk, kn = jax.random.split(key)
-        k_max = jnp.where(jax.random.bernoulli(kk, 0.75, (x.shape[0],)), M, M // 2)
-        k = jax.random.randint(jax.random.fold_in(kk, 1), (x.shape[0],), 0, k_max + 1)
-        loss, grads = jax.value_and_grad(loss_fn)(params, x, k, kn)
-        updates, opt_state = opt.update(grads, opt_state, params)
-        return optax.apply_updates(params, updates), opt_state, loss
+    def plain_draw(key, b):
+        k_max = jnp.where(jax.random.bernoulli(key, 0.75, (b,)), M, M // 2)
+        return (jax.random.randint(jax.random.fold_in(key, 1), (b,), 0, k_max + 1),)
 
     def mono_loss_fn(params, x, k1, k2, key):
         s = model.apply({"params": params}, x, method=DeepJSCC.encode)
@@ -147,20 +142,24 @@ def make_train_step(cfg: TrainConfig):
         hinge = jax.nn.relu(l2 - l1 + cfg.monotone_margin)
         return 0.5 * jnp.mean(l1 + l2) + cfg.monotone_weight * jnp.mean(hinge)
 
-    @jax.jit
-    def mono_step(params, opt_state, x, key):
-        kk, kn = jax.random.split(key)
-        b = x.shape[0]
-        c = jax.random.split(kk, 5)
+    def mono_draw(key, b):
+        c = jax.random.split(key, 5)
         k2 = jnp.where(jax.random.bernoulli(c[0], 0.25, (b,)), M, jax.random.randint(c[1], (b,), 1, M + 1))
         near = jnp.maximum(k2 - jax.random.randint(c[2], (b,), 1, cfg.monotone_gap + 1), 0)
         far = jax.random.randint(c[3], (b,), 0, k2)
-        k1 = jnp.where(jax.random.bernoulli(c[4], 0.5, (b,)), near, far)
-        loss, grads = jax.value_and_grad(mono_loss_fn)(params, x, k1, k2, kn)
+        return jnp.where(jax.random.bernoulli(c[4], 0.5, (b,)), near, far), k2
+
+    mono = cfg.monotone_weight > 0
+    loss_of, draw = (mono_loss_fn, mono_draw) if mono else (loss_fn, plain_draw)
+
+    @jax.jit
+    def step(params, opt_state, x, key):
+        kk, kn = jax.random.split(key)
+        loss, grads = jax.value_and_grad(loss_of)(params, x, *draw(kk, x.shape[0]), kn)
         updates, opt_state = opt.update(grads, opt_state, params)
         return optax.apply_updates(params, updates), opt_state, loss
 
-    return mono_step if cfg.monotone_weight > 0 else step
+    return step
 
 
 def save_checkpoint(out: Path, cfg: TrainConfig, params, opt_state, step: int, history: list) -> None:
