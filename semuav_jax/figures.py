@@ -11,6 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from semuav_jax.agents.evaluate import wilson_interval  # noqa: E402
 from semuav_jax.io import atomic_write  # noqa: E402
 
 STYLE = {"DDQN": dict(color="C3", marker="o"), "greedy": dict(color="C0", marker="s"), "tsp": dict(color="C2", marker="^")}
@@ -34,19 +35,23 @@ def _panel(rows, panel, x_key, x_scale, xlabel, title, path, hline_ddqn=False):
             continue
         for ax, metric in zip(axes, ("mean_psnr", "coverage", "arrived")):
             y = np.array([r[metric] for r in rs])
-            e = np.array([r[f"{metric}_ci95"] for r in rs])
+            if metric == "arrived":
+                lo, hi = wilson_interval(y, np.array([r["episodes"] for r in rs]))
+            else:
+                e = np.array([r[f"{metric}_ci95"] for r in rs])
+                lo, hi = y - e, y + e
             if hline_ddqn and policy == "DDQN":
                 ax.axhline(y[0], color=STYLE[policy]["color"], label=f"{LABEL[policy]} (no speed parameter)")
-                ax.axhspan(y[0] - e[0], y[0] + e[0], color=STYLE[policy]["color"], alpha=0.15)
+                ax.axhspan(lo[0], hi[0], color=STYLE[policy]["color"], alpha=0.15)
                 continue
             x = np.array([r[x_key] for r in rs]) * x_scale
-            ax.errorbar(x, y, yerr=e, capsize=3, label=LABEL[policy], **STYLE[policy])
+            ax.errorbar(x, y, yerr=np.stack([y - lo, hi - y]), capsize=3, label=LABEL[policy], **STYLE[policy])
     n = rows[0]["episodes"]
     for ax, ylabel in zip(axes, ("mean PSNR (dB)", "devices covered (of N)", "arrival rate")):
         ax.set(xlabel=xlabel, ylabel=ylabel)
         ax.grid(alpha=0.3)
     axes[0].set_title(title)
-    axes[1].set_title(f"error bars: 95 % CI over {n} layouts")
+    axes[1].set_title(f"error bars: 95 % CI over {n} layouts (arrival: Wilson)")
     axes[0].legend()
     save_figure(fig, path)
 

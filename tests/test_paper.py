@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from semuav_jax import paper
+from semuav_jax.agents.evaluate import wilson_interval
 from semuav_jax.agents.pretrained import load_pretrained
 from semuav_jax.agents.scenarios import scenario_params
 
@@ -79,3 +80,9 @@ def test_table_figures_and_trajectories(sweep, tmp_path):
     figures.fig2b(rows, tmp_path / "b.png", 25e3)
     figures.fig2c(traj, fixed, tmp_path / "c.png")
     assert all((tmp_path / f).stat().st_size > 10_000 for f in ("a.png", "b.png", "c.png"))
+
+
+def test_wilson_interval_hand_values_and_bounds():
+    lo, hi = wilson_interval(np.array([1.0, 0.5, 0.0]), np.array([64, 100, 64]))
+    np.testing.assert_allclose(lo, [0.943374, 0.403830, 0.0], atol=2e-6)
+    np.testing.assert_allclose(hi, [1.0, 0.596170, 0.056626], atol=2e-6)

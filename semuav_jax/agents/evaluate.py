@@ -45,6 +45,15 @@ def mean_ci(x, z: float = 1.96):
     return float(x.mean()), float(z * x.std(ddof=1) / np.sqrt(len(x))) if len(x) > 1 else 0.0
 
 
+def wilson_interval(p, n, z: float = 1.96):
+    """Wilson score 95 % interval (lo, hi) of a proportion p observed over n trials; unlike
+    p ± z sqrt(p(1-p)/n) it stays inside [0, 1] and is not empty at p = 0 or 1."""
+    p = np.asarray(p, np.float64)
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return centre - half, centre + half
+
+
 def baseline_results(keys, params: EnvParams, baselines=("greedy", "tsp"), v_b=None) -> dict:
     """Per-episode metrics of each baseline on episodes ``keys``."""
     v_b = DEFAULT_V_B if v_b is None else v_b
