@@ -12,7 +12,7 @@ from semuav_jax.jscc import M, power_normalize, prefix_mask, quantize_iq, trunca
 from semuav_jax.jscc import data
 from semuav_jax.jscc.__main__ import main
 from semuav_jax.jscc.evaluate import default_model_path, load_model, sha256_file
-from semuav_jax.jscc.model import DeepJSCC, latent_to_symbols, symbols_to_latent
+from semuav_jax.jscc.model import DeepJSCC, latent_to_symbols, received_plane, symbols_to_latent
 from semuav_jax.jscc.train import TrainConfig, train
 
 
@@ -46,6 +46,33 @@ def test_latent_is_channel_major_and_invertible():
     np.testing.assert_allclose(s[0, 32], z[0, 0, 0, 1] + 1j * z[0, 0, 1, 1])
     np.testing.assert_allclose(symbols_to_latent(s), z)
 
+
+def test_dead_leaves_replace_a_fraction_of_the_batch():
+    photos = list(data.builtin_test_set()[0][:6])
+    plain = data.sample_batch(photos, 16, np.random.default_rng([0, 5]))
+    mixed = data.sample_batch(photos, 16, np.random.default_rng([0, 5]), synthetic=0.25)
+    np.testing.assert_array_equal(mixed[4:], plain[4:])  # the photo crops draw exactly as without
+    assert not np.array_equal(mixed[:4], plain[:4])
+    leaves = data.dead_leaves(50, np.random.default_rng(1))
+    assert leaves.shape == (50, 32, 32, 3) and leaves.dtype == np.float32
+    assert 0.0 <= leaves.min() and leaves.max() <= 1.0
+    # piecewise constant: every image holds few distinct colours, unlike a photo crop
+    assert max(len(np.unique(im.reshape(-1, 3), axis=0)) for im in leaves) <= 49
+    np.testing.assert_array_equal(leaves, data.dead_leaves(50, np.random.default_rng(1)))
+
+
+def test_mask_input_decoder_sees_exactly_the_received_entries():
+    s = power_normalize(_complex(jax.random.PRNGKey(3), (3, M)))
+    k = jnp.array([0, 17, M])
+    rx = jnp.where(prefix_mask(k), quantize_iq(truncate(s, k)), 0.0)
+    plane = np.asarray(received_plane(rx))
+    assert plane.shape == (3, 8, 8, 8)
+    assert plane.sum(axis=(1, 2, 3)).tolist() == [0, 34, 2 * M]
+    np.testing.assert_array_equal(plane, np.asarray(symbols_to_latent(prefix_mask(k) * (1.0 + 1.0j))))
+    net = DeepJSCC(8, mask_input=True)
+    shapes = jax.eval_shape(net.init, jax.random.PRNGKey(0), jnp.zeros((1, 32, 32, 3)), jnp.array([M]),
+                            jax.random.PRNGKey(1), 30.0)["params"]
+    assert shapes["decoder"]["Conv_0"]["kernel"].shape[2] == 16  # 8 latent + 8 mask channels
 
 def test_quantizer_is_8_bit_and_clips():
     x = jnp.linspace(-6.0, 6.0, 10001)

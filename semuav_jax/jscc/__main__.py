@@ -31,7 +31,7 @@ def _train(a) -> None:
         cfg = TrainConfig(
             steps=a.steps, batch=a.batch, lr=a.lr, snr_db=a.snr_db, width=a.width, seed=a.seed,
             monotone_weight=a.monotone_weight, monotone_margin=a.monotone_margin, monotone_gap=a.monotone_gap,
-            channel=a.channel,
+            channel=a.channel, mask_input=a.mask_input, synthetic_fraction=a.synthetic_fraction,
             init_from=str(a.init_from) if a.init_from else None,
         )
     if a.minutes is not None and not a.minutes > 0:
@@ -79,6 +79,9 @@ def main(argv=None) -> int:
                    help="half of the hinge's pairs have k2 - k1 uniform in 1..this")
     t.add_argument("--channel", choices=CHANNELS, default=d.channel,
                    help="training channel: AWGN at --snr-db, or noise-free 8-bit I/Q as in the curves")
+    t.add_argument("--mask-input", action="store_true", help="the decoder also sees which latent entries arrived")
+    t.add_argument("--synthetic-fraction", type=float, default=d.synthetic_fraction,
+                   help="fraction of each batch replaced by synthetic dead-leaves images")
     t.add_argument("--images", default=None, help="train on the images of this folder instead")
     t.add_argument("--cifar10", default=None, help="train on CIFAR-10 python batches in this folder instead")
     t.set_defaults(func=_train)

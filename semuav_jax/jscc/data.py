@@ -145,10 +145,27 @@ def cifar10_images(path: str | os.PathLike, test: bool = False) -> np.ndarray:
 PERMUTATIONS = np.array([[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]])
 
 
-def sample_batch(photos: list[np.ndarray], batch: int, rng: np.random.Generator) -> np.ndarray:
+def dead_leaves(n: int, rng: np.random.Generator, disks: int = 48) -> np.ndarray:
+    """``n`` synthetic 32x32 dead-leaves images: ``disks`` occluding disks of uniform random
+    colour, radii with density ~ r^-3 on [1, 24] px (the scale-invariant model of natural-image
+    statistics, Lee, Mumford & Huang 2001), on a random background."""
+    yy, xx = np.mgrid[:CROP, :CROP].astype(np.float32)
+    u = rng.random((n, disks))
+    r = 1.0 / np.sqrt(1.0 - u * (1.0 - 1.0 / 24.0**2))
+    centre = rng.uniform(-8, CROP + 8, size=(n, disks, 2)).astype(np.float32)
+    colour = rng.random((n, disks, 3)).astype(np.float32)
+    out = np.repeat(rng.random((n, 1, 1, 3)).astype(np.float32), CROP, axis=1).repeat(CROP, axis=2)
+    for j in range(disks):
+        inside = (yy - centre[:, j, 0, None, None]) ** 2 + (xx - centre[:, j, 1, None, None]) ** 2 < r[:, j, None, None] ** 2
+        out = np.where(inside[..., None], colour[:, j, None, None, :], out)
+    return out
+
+
+def sample_batch(photos: list[np.ndarray], batch: int, rng: np.random.Generator, synthetic: float = 0.0) -> np.ndarray:
     """A batch of random 32x32 crops, photo chosen uniformly, with random horizontal flips and,
     for half of the crops, a random permutation of the colour channels (the few training photos
-    hold little green; without it green test crops decode blue)."""
+    hold little green; without it green test crops decode blue). With ``synthetic`` > 0, that
+    fraction of the batch is replaced by :func:`dead_leaves` images."""
     out = np.empty((batch, CROP, CROP, 3), np.float32)
     which = rng.integers(len(photos), size=batch)
     flips = rng.random(batch) < 0.5
@@ -159,4 +176,7 @@ def sample_batch(photos: list[np.ndarray], batch: int, rng: np.random.Generator)
         c = rng.integers(p.shape[1] - CROP + 1)
         crop = p[r : r + CROP, c : c + CROP]
         out[b] = (crop[:, ::-1] if flips[b] else crop)[..., perms[b]]
+    n_syn = int(round(synthetic * batch))
+    if n_syn:
+        out[:n_syn] = dead_leaves(n_syn, rng)
     return out

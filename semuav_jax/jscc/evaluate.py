@@ -20,7 +20,7 @@ from semuav_jax.curves import default_curves_path, load_curves, save_curves
 from semuav_jax.jscc import data
 from semuav_jax.jscc.model import BITS_PER_SYMBOL, IMAGE_SHAPE, IQ_CLIP, M, DeepJSCC, prefix_mask, quantize_iq, truncate
 from semuav_jax.io import atomic_write
-from semuav_jax.jscc.train import load_checkpoint, load_config, make_optimizer
+from semuav_jax.jscc.train import load_checkpoint, load_config, make_optimizer, model_of
 
 DEFAULT_MODEL = "deepjscc.msgpack"
 FRACTIONS = {"0": 0, "1/10": M // 10, "1/4": M // 4, "1/2": M // 2, "1": M}
@@ -30,9 +30,10 @@ def default_model_path() -> Path:
     return default_curves_path().parent / DEFAULT_MODEL
 
 
-def save_model(path: str | os.PathLike, params, width: int) -> str:
-    """Write params (+ width) as flax msgpack atomically; returns the file's sha256."""
-    blob = serialization.msgpack_serialize({"width": width, "params": jax.device_get(params)})
+def save_model(path: str | os.PathLike, params, model: DeepJSCC) -> str:
+    """Write params (+ the module's fields) as flax msgpack atomically; returns the file's sha256."""
+    arch = {"width": model.width, "mask_input": model.mask_input}
+    blob = serialization.msgpack_serialize({**arch, "params": jax.device_get(params)})
     atomic_write(path, blob)
     return hashlib.sha256(blob).hexdigest()
 
@@ -44,7 +45,7 @@ def load_model(path: str | os.PathLike | None = None):
         raise ValueError(f"DeepJSCC model file not found: {path}")
     try:
         state = serialization.msgpack_restore(path.read_bytes())
-        model = DeepJSCC(int(state["width"]))
+        model = DeepJSCC(int(state["width"]), bool(state.get("mask_input", False)))
         params = state["params"]
         model.apply({"params": params}, jnp.zeros((1, *IMAGE_SHAPE)), method=DeepJSCC.encode)
     except Exception as e:
@@ -90,8 +91,8 @@ def write_curves(ckpt: str | os.PathLike, out: str | os.PathLike, model_out: str
     if out.suffix != ".npz":
         raise ValueError(f"--out must be a .npz path, got {out}")
     model_out = Path(model_out) if model_out is not None else out.parent / DEFAULT_MODEL
-    model_hash = save_model(model_out, params, cfg.width)
-    model = DeepJSCC(cfg.width)
+    model = model_of(cfg)
+    model_hash = save_model(model_out, params, model)
     x, names = data.builtin_test_set()
     C = compute_curves(model, params, x)
     mean = C.mean(axis=0)

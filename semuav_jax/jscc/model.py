@@ -32,6 +32,11 @@ def symbols_to_latent(s: jax.Array) -> jax.Array:
     return jnp.transpose(r, (0, 2, 3, 1))
 
 
+def received_plane(s: jax.Array) -> jax.Array:
+    """(B, 8, 8, 8) plane, 1 at the latent entries of the received (non-zero) symbols, else 0."""
+    return symbols_to_latent((s != 0) * (1.0 + 1.0j))
+
+
 def power_normalize(s: jax.Array, mask: jax.Array | None = None) -> jax.Array:
     """Scale each row so its (kept) symbols have unit average complex power; masked symbols -> 0."""
     if mask is None:
@@ -97,13 +102,16 @@ def depth_to_space(x: jax.Array, r: int = 2) -> jax.Array:
 
 
 class Decoder(nn.Module):
-    """8x8x8 received latent -> 32x32x3 image in [0, 1]."""
+    """8x8x8 received latent -> 32x32x3 image in [0, 1]; with ``mask_input`` the decoder also
+    sees which latent entries were received (an 8x8x8 0/1 plane)."""
 
     width: int = 32
 
     @nn.compact
-    def __call__(self, z):
+    def __call__(self, z, mask=None):
         w = self.width
+        if mask is not None:
+            z = jnp.concatenate([z, mask], axis=-1)
         x = nn.gelu(nn.Conv(w, (3, 3))(z))
         x = x + nn.Conv(w, (3, 3))(nn.gelu(nn.Conv(w, (3, 3))(x)))
         x = nn.gelu(depth_to_space(nn.Conv(4 * w, (3, 3))(x)))
@@ -116,6 +124,7 @@ class DeepJSCC(nn.Module):
     """Encoder + decoder; the channel sits between :meth:`encode` and :meth:`decode`."""
 
     width: int = 32
+    mask_input: bool = False
 
     def setup(self):
         self.encoder = Encoder(self.width)
@@ -126,8 +135,11 @@ class DeepJSCC(nn.Module):
         return power_normalize(latent_to_symbols(self.encoder(x)))
 
     def decode(self, s):
-        """Received (B, M) complex symbols (tail zero-padded) -> images in [0, 1]."""
-        return self.decoder(symbols_to_latent(s))
+        """Received (B, M) complex symbols (tail zero-padded) -> images in [0, 1]. The received
+        entries are the non-zero ones: neither channel yields an exact zero (8-bit I/Q levels
+        are odd multiples of half a step, AWGN is continuous)."""
+        mask = received_plane(s) if self.mask_input else None
+        return self.decoder(symbols_to_latent(s), mask)
 
     def __call__(self, x, k, key, snr_db: float):
         """Encode, keep the first k symbols (renormalized), AWGN, zero-pad, decode."""

@@ -18,6 +18,10 @@ otherwise). The loss is the log-MSE at both prefixes plus ``monotone_weight`` ti
 hinge relu(loss(k2) - loss(k1) + ``monotone_margin``) (margin 0 by default), which
 trains the decoder to do at least as well from a longer prefix as from a shorter one (the mean
 PSNR-vs-k curve of a model trained with the plain loss sags beyond k ~ 160).
+
+Options studied in session 3 (docs/deepjscc.md): ``mask_input`` (the decoder also sees which
+latent entries arrived) and ``synthetic_fraction`` (that share of every batch is dead-leaves
+images, ``data.dead_leaves``); both default off, so the shipped recipe is unchanged.
 """
 
 from __future__ import annotations
@@ -59,6 +63,8 @@ class TrainConfig:
     monotone_margin: float = 0.0
     monotone_gap: int = 32
     channel: str = "awgn"
+    mask_input: bool = False
+    synthetic_fraction: float = 0.0
     init_from: str | None = None
 
     def validate(self) -> None:
@@ -73,6 +79,8 @@ class TrainConfig:
             raise ValueError(f"snr_db must be finite, got {self.snr_db}")
         if not (np.isfinite(self.monotone_weight) and self.monotone_weight >= 0):
             raise ValueError(f"monotone_weight must be >= 0, got {self.monotone_weight}")
+        if not 0.0 <= self.synthetic_fraction <= 1.0:
+            raise ValueError(f"synthetic_fraction must be in [0, 1], got {self.synthetic_fraction}")
         if not np.isfinite(self.monotone_margin):
             raise ValueError(f"monotone_margin must be finite, got {self.monotone_margin}")
 
@@ -83,8 +91,13 @@ def make_optimizer(cfg: TrainConfig) -> optax.GradientTransformation:
     return optax.chain(optax.clip_by_global_norm(1.0), optax.adam(sched))
 
 
+def model_of(cfg: TrainConfig) -> DeepJSCC:
+    """The network a config trains."""
+    return DeepJSCC(cfg.width, cfg.mask_input)
+
+
 def init_params(cfg: TrainConfig):
-    model = DeepJSCC(cfg.width)
+    model = model_of(cfg)
     x = jnp.zeros((1, *IMAGE_SHAPE), jnp.float32)
     return model.init(jax.random.PRNGKey(cfg.seed), x, jnp.array([M]), jax.random.PRNGKey(0), cfg.snr_db)["params"]
 
@@ -94,8 +107,9 @@ def start_params(cfg: TrainConfig):
     if cfg.init_from is None:
         return init_params(cfg)
     src_cfg, _ = load_config(cfg.init_from)
-    if src_cfg.width != cfg.width:
-        raise ValueError(f"--init-from {cfg.init_from} has width {src_cfg.width}, not {cfg.width}")
+    for name in ("width", "mask_input"):
+        if getattr(src_cfg, name) != getattr(cfg, name):
+            raise ValueError(f"--init-from {cfg.init_from} has {name} {getattr(src_cfg, name)}, not {getattr(cfg, name)}")
     params, _, _ = load_checkpoint(cfg.init_from, src_cfg, make_optimizer(src_cfg))
     return params
 
@@ -121,7 +135,7 @@ def _log_mse(y, x):
 @functools.lru_cache(maxsize=4)
 def make_train_step(cfg: TrainConfig):
     """Jitted (params, opt_state, x, key) -> (params, opt_state, loss); cached per config."""
-    model = DeepJSCC(cfg.width)
+    model = model_of(cfg)
     opt = make_optimizer(cfg)
 
     def loss_fn(params, x, k, key):
@@ -238,7 +252,7 @@ def train(
         bar = tqdm(total=cfg.steps, initial=start, desc="train", unit="step", mininterval=5.0)
     step = start
     while step < cfg.steps:
-        x = sample_batch(photos, cfg.batch, np.random.default_rng([cfg.seed, step]))
+        x = sample_batch(photos, cfg.batch, np.random.default_rng([cfg.seed, step]), cfg.synthetic_fraction)
         params, opt_state, loss = step_fn(params, opt_state, x, jax.random.fold_in(base_key, step))
         window.append(loss)
         step += 1
