@@ -19,9 +19,9 @@ hinge relu(loss(k2) - loss(k1) + ``monotone_margin``) (margin 0 by default), whi
 trains the decoder to do at least as well from a longer prefix as from a shorter one (the mean
 PSNR-vs-k curve of a model trained with the plain loss sags beyond k ~ 160).
 
-Options studied in session 3 (docs/deepjscc.md): ``mask_input`` (the decoder also sees which
-latent entries arrived) and ``synthetic_fraction`` (that share of every batch is dead-leaves
-images, ``data.dead_leaves``); both default off, so the shipped recipe is unchanged.
+Two options, off by default and not in the shipped model (docs/deepjscc.md): ``mask_input``
+(the decoder also sees which latent entries arrived) and ``synthetic_fraction`` (that share of
+every batch is dead-leaves images, ``data.dead_leaves``).
 """
 
 from __future__ import annotations
