@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 
 from semuav_jax.jscc.train import CHANNELS, TrainConfig
@@ -28,12 +29,9 @@ def _train(a) -> None:
     if a.resume:
         cfg, _ = load_config(a.out)
     else:
-        cfg = TrainConfig(
-            steps=a.steps, batch=a.batch, lr=a.lr, snr_db=a.snr_db, width=a.width, seed=a.seed,
-            monotone_weight=a.monotone_weight, monotone_margin=a.monotone_margin, monotone_gap=a.monotone_gap,
-            channel=a.channel, mask_input=a.mask_input, synthetic_fraction=a.synthetic_fraction,
-            init_from=str(a.init_from) if a.init_from else None,
-        )
+        # every TrainConfig field has the --option of the same name
+        given = {f.name: getattr(a, f.name) for f in dataclasses.fields(TrainConfig)}
+        cfg = TrainConfig(**{**given, "init_from": a.init_from or None})
     if a.minutes is not None and not a.minutes > 0:
         raise ValueError(f"--minutes must be positive, got {a.minutes}")
     _, history = train(cfg, photos, out=a.out, resume=a.resume, minutes=a.minutes)
