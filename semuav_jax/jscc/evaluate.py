@@ -111,7 +111,8 @@ def write_curves(ckpt: str | os.PathLike, out: str | os.PathLike, model_out: str
         "train_config": {**cfg.__dict__},
         "train_steps_done": step,
         "train_seconds": history[-1][2] if history else None,
-        "dataset": "32x32 crops of colour photos shipped in the scikit-image and scikit-learn wheels",
+        "dataset": "32x32 crops of colour photos shipped in the scikit-image and scikit-learn wheels"
+        + (f", {cfg.synthetic_fraction:.0%} of each batch synthetic dead-leaves images" if cfg.synthetic_fraction else ""),
         "train_photos": list(data.SKIMAGE_TRAIN + data.SKLEARN_TRAIN),
         "train_scales": list(data.SCALES),
         "test_photos": list(data.SKIMAGE_TEST + data.SKLEARN_TEST),

@@ -9,19 +9,20 @@ larger, do not dominate the gradient as they do with a plain MSE. The batch of s
 drawn from ``numpy.random.default_rng([seed, t])`` and the channel key from
 ``fold_in(PRNGKey(seed), t)``, so a resumed run is identical to an uninterrupted one.
 
-Monotone fine-tuning (``monotone_weight > 0``, usually with ``init_from`` naming the directory
-of a finished run whose parameters start the run; the optimizer starts afresh): every crop is
-decoded from two prefixes k1 < k2 of the same transmission with the same channel noise on the
-shared symbols (k2 = M for a quarter of the crops, uniform in {1, ..., M} otherwise; k1 =
-max(k2 - d, 0) with d uniform in {1, ..., 32} for half of the crops, uniform in {0, ..., k2 - 1}
-otherwise). The loss is the log-MSE at both prefixes plus ``monotone_weight`` times the mean
-hinge relu(loss(k2) - loss(k1) + ``monotone_margin``) (margin 0 by default), which
-trains the decoder to do at least as well from a longer prefix as from a shorter one (the mean
-PSNR-vs-k curve of a model trained with the plain loss sags beyond k ~ 160).
+Monotone training (``monotone_weight > 0``; the defaults are the shipped model's recipe,
+docs/deepjscc.md): every crop is decoded from two prefixes k1 < k2 of the same transmission
+with the same channel noise on the shared symbols (k2 = M for a quarter of the crops, uniform in
+{1, ..., M} otherwise; k1 = max(k2 - d, 0) with d uniform in {1, ..., ``monotone_gap``} for half
+of the crops, uniform in {0, ..., k2 - 1} otherwise). The loss is the log-MSE at both prefixes
+plus ``monotone_weight`` times the mean hinge relu(loss(k2) - loss(k1) + ``monotone_margin``),
+which trains the decoder to do at least as well from a longer prefix as from a shorter one. It
+runs from the first step, or as a fine-tune of a finished run named by ``init_from`` (whose
+parameters start the run; the optimizer starts afresh). ``monotone_weight = 0`` is the plain
+loss above (the mean PSNR-vs-k curve of such a model sags beyond k ~ 160).
 
-Two options, off by default and not in the shipped model (docs/deepjscc.md): ``mask_input``
-(the decoder also sees which latent entries arrived) and ``synthetic_fraction`` (that share of
-every batch is dead-leaves images, ``data.dead_leaves``).
+``synthetic_fraction`` (default 0.25) is the share of every batch made of dead-leaves images
+(``data.dead_leaves``); ``mask_input`` (off by default and in the shipped model) lets the decoder
+see which latent entries arrived.
 """
 
 from __future__ import annotations
@@ -59,12 +60,12 @@ class TrainConfig:
     snr_db: float = 30.0
     width: int = 32
     seed: int = 0
-    monotone_weight: float = 0.0
+    monotone_weight: float = 16.0
     monotone_margin: float = 0.0
-    monotone_gap: int = 32
+    monotone_gap: int = 1
     channel: str = "awgn"
     mask_input: bool = False
-    synthetic_fraction: float = 0.0
+    synthetic_fraction: float = 0.25
     init_from: str | None = None
 
     def validate(self) -> None:
