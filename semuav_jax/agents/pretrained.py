@@ -1,5 +1,5 @@
 """The shipped DDQN agent: random layouts, gain reward, B = 20 kHz, gamma 0.999, return-home
-shield, 3 M steps on the shipped DeepJSCC curves (``ddqn_random.json`` says how; docs/ddqn.md).
+shield, 3 M steps on session 2's DeepJSCC curves (``ddqn_random.json`` says how; docs/ddqn.md).
 ``eval.py --quick`` fine-tunes it per bandwidth instead of training from scratch."""
 
 from __future__ import annotations
