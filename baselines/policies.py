@@ -3,6 +3,11 @@
 Each policy is ``policy(policy_state, env_state, params) -> (acceleration (2,), policy_state)``
 (the interface of ``semuav_jax.rollout``). The policy state carries the speed v_b (traced, so a
 velocity sweep is a ``vmap``), the TSP rank of each device and the set of passed devices.
+All of them steer with the core controller (``semuav_jax.control``, docs/model.md eqs. 7.1-7.5):
+
+- a device is feasible when flying through it and then home fits in the time left (eq. 7.6);
+- the current target device is passed once its horizontal distance is <= v_b tau;
+- with no feasible device left, the UAV flies home and brakes into the arrival disk (eq. 7.3).
 """
 
 from __future__ import annotations
@@ -11,10 +16,24 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from baselines.controller import feasible, speed_command
+from semuav_jax.control import home_command, speed_command, time_home, time_to_pass
 from semuav_jax.params import EnvParams
 
 DEFAULT_V_B = 8.9  # m/s, the paper's baseline speed
+MARGIN_S = 1.0  # seconds of slack in the feasibility test (eq. 7.6); 0 still arrived in 1000 of 1000 layouts at every v_b
+
+
+def feasible(q, v, t, dev_pos, v_b, params: EnvParams):
+    """(N,) bool, eq. 7.6: flying from (q, v) through p_n at v_b (eq. 7.4) and from there home
+    (eq. 7.5, leaving p_n at v_b along the approach course) fits in the time left (K - t) tau
+    less ``MARGIN_S``."""
+
+    def need(p):
+        d = p - q
+        u = d / jnp.maximum(jnp.linalg.norm(d), 1e-6)
+        return time_to_pass(q, v, p, v_b, params) + time_home(p, v_b * u, v_b, params)
+
+    return jax.vmap(need)(dev_pos) + MARGIN_S <= (params.K - t) * params.tau
 
 
 @struct.dataclass
@@ -38,7 +57,7 @@ def _follow(score, ps: BaselineState, s, params: EnvParams):
     Targets within v_b tau are marked passed and the choice is repeated, so the UAV never
     circles a device it already reached.
     """
-    ok = feasible(s.q, s.t, s.dev_pos, ps.v_b, params)
+    ok = feasible(s.q, s.v, s.t, s.dev_pos, ps.v_b, params)
     dist = jnp.linalg.norm(s.dev_pos - s.q, axis=-1)
 
     def pick(passed):
@@ -52,8 +71,8 @@ def _follow(score, ps: BaselineState, s, params: EnvParams):
 
     passed = jax.lax.while_loop(reached, lambda p: p.at[pick(p)[0]].set(True), ps.passed)
     i, has = pick(passed)
-    target = jnp.where(has, s.dev_pos[i], params.q_fin)
-    return speed_command(s.q, s.v, target, ps.v_b, params), ps.replace(passed=passed)
+    a = jnp.where(has, speed_command(s.q, s.v, s.dev_pos[i], ps.v_b, params), home_command(s.q, s.v, ps.v_b, params))
+    return a, ps.replace(passed=passed)
 
 
 def greedy(ps: BaselineState, s, params: EnvParams):
@@ -68,7 +87,7 @@ def tsp(ps: BaselineState, s, params: EnvParams):
 
 def straight(ps: BaselineState, s, params: EnvParams):
     """Floor: straight flight from q0 to q_fin at v_b, serving whatever lies on the way."""
-    return speed_command(s.q, s.v, params.q_fin, ps.v_b, params), ps
+    return home_command(s.q, s.v, ps.v_b, params), ps
 
 
 POLICIES = {"greedy": greedy, "tsp": tsp, "straight": straight}

@@ -2,15 +2,13 @@
 
 Solved with OR-Tools routing (one vehicle, fixed start and end node, integer distances in
 centimetres, guided local search under a time limit) outside jit, one layout at a time. Large
-batches are split over worker processes that run this file as a script (it imports no JAX, and
-unlike a multiprocessing pool it needs no ``__main__`` guard in the caller and never forks JAX).
+batches are split over worker processes (``baselines/workers.py``) that load this file, which
+therefore imports no JAX and nothing from ``baselines`` at top level.
 """
 
 from __future__ import annotations
 
-import io
-import subprocess
-import sys
+from pathlib import Path
 
 import numpy as np
 from ortools.constraint_solver import pywrapcp, routing_enums_pb2
@@ -74,33 +72,18 @@ def solve_orders(
     """Visiting orders (E, N) for a batch of layouts ``dev_pos`` (E, N, 2).
 
     Batches of at least ``PARALLEL_MIN_LAYOUTS`` layouts are split over ``workers`` processes
-    (``python tsp.py``, arrays through stdin/stdout); nothing is cached.
+    (``baselines/workers.py``, arrays through stdin/stdout); nothing is cached.
     """
     dev_pos = np.asarray(dev_pos, float)
     q0, q_fin = np.asarray(q0, float), np.asarray(q_fin, float)
     if workers <= 1 or len(dev_pos) < PARALLEL_MIN_LAYOUTS:
         return _solve_batch(dev_pos, q0, q_fin, time_limit_ms)
-    procs = []
-    for chunk in np.array_split(dev_pos, workers):
-        proc = subprocess.Popen([sys.executable, __file__], stdin=subprocess.PIPE, stdout=subprocess.PIPE)
-        buf = io.BytesIO()
-        np.savez(buf, dev_pos=chunk, q0=q0, q_fin=q_fin, time_limit_ms=time_limit_ms)
-        proc.stdin.write(buf.getvalue())
-        proc.stdin.close()
-        procs.append(proc)
-    outs = [proc.stdout.read() for proc in procs]
-    for proc in procs:
-        if proc.wait() != 0:
-            raise RuntimeError(f"TSP worker failed with exit code {proc.returncode}")
-    return np.concatenate([np.load(io.BytesIO(out)) for out in outs])
+    from baselines.workers import map_chunks  # not at top level: the workers load this file without the package
+
+    shared = {"q0": q0, "q_fin": q_fin, "time_limit_ms": time_limit_ms}
+    return map_chunks(Path(__file__), "_worker_batch", {"dev_pos": dev_pos}, shared, workers)["orders"]
 
 
-def _worker() -> None:
-    """Solve the batch of an npz on stdin; write the orders as .npy to stdout."""
-    data = np.load(io.BytesIO(sys.stdin.buffer.read()))
-    orders = _solve_batch(data["dev_pos"], data["q0"], data["q_fin"], int(data["time_limit_ms"]))
-    np.save(sys.stdout.buffer, orders)
-
-
-if __name__ == "__main__":
-    _worker()
+def _worker_batch(dev_pos, q0, q_fin, time_limit_ms) -> dict:
+    """Entry point of a worker process (``baselines/workers.py``)."""
+    return {"orders": _solve_batch(dev_pos, q0, q_fin, int(time_limit_ms))}

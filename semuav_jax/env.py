@@ -14,7 +14,7 @@ from flax import struct
 
 from semuav_jax import channel, kinematics, quality, spaces
 from semuav_jax.actions import action_to_accel
-from semuav_jax.observation import obs_size, observation
+from semuav_jax.observation import obs_bounds, obs_size, observation
 from semuav_jax.params import EnvParams, make_params
 from semuav_jax.reward import reward
 
@@ -115,7 +115,7 @@ def transition_u(u, state: EnvState, accel, params: EnvParams):
         x=x,
         delay=delay,
         arrived=arrived,
-        done=arrived | (t >= params.K),
+        done=arrived | (t >= params.K) | kinematics.outside_airspace(q, params),
     )
     rew = reward(state, new, params)
     new = new.replace(ret=state.ret + rew)
@@ -148,7 +148,8 @@ class SemUAVEnv:
 
     def observation_space(self, params: EnvParams | None = None):
         params = params or self.default_params
-        return spaces.Box(-1.0, 1.0, (obs_size(params),), jnp.float32)
+        low, high = obs_bounds(params)
+        return spaces.Box(low, high, (obs_size(params),), jnp.float32)
 
     def get_obs(self, state: EnvState, params: EnvParams | None = None, key=None):
         return observation(state, params or self.default_params)

@@ -14,6 +14,18 @@ def obs_size(params: EnvParams) -> int:
     return GLOBAL_FEATURES + DEVICE_FEATURES * params.N
 
 
+def obs_bounds(params: EnvParams):
+    """(low, high) of every entry of eq. 5.1. Offsets scale with the farthest the UAV can fly from
+    q0 in T (no wall: it may leave the area); in ordinary flight they stay in about [-1, 1]."""
+    reach = 1.0 + params.v_max * params.K * params.tau / jnp.minimum(params.Lx, params.Ly)
+    one = jnp.ones(())
+    glob = jnp.stack([reach, reach, one, one, one, one, one, reach, reach])
+    dev = jnp.stack([reach, reach, one, one, one])
+    high = jnp.concatenate([glob, jnp.tile(dev, params.N)])
+    low = high * jnp.concatenate([-jnp.ones(6), jnp.zeros(1), -jnp.ones(2), jnp.tile(jnp.array([-1.0, -1, 0, 0, 0]), params.N)])
+    return low, high
+
+
 def observation(state, params: EnvParams):
     """Eq. 5.1: a flat float32 vector, each entry in about [-1, 1].
 

@@ -48,6 +48,7 @@ class EnvParams:
     r_g: float = 500.0
     P_miss: float = 500.0
     kappa_d: float = 1.0
+    airspace_margin: float = float("inf")  # metres beyond the area that end the episode; inf: no bound
     kappa_c: float = 10.0  # MODEL.md gives no value; 10 measured best (docs/ddqn.md)
     eps: float = 1e-6
     # Air-to-ground channel, urban (Al-Hourani 2014), MODEL.md section 2
@@ -99,6 +100,8 @@ def make_params(
     device_pos = np.asarray(device_pos, np.float32)
     if device_img is None:
         device_img = np.arange(device_pos.shape[0]) % C.shape[0]
+    if overrides.get("airspace_margin", 0.0) is None:
+        overrides["airspace_margin"] = float("inf")
     floats = {k: float(v) if np.ndim(v) == 0 and k not in _STATIC else v for k, v in overrides.items()}
     for k in ("q0", "q_fin", "bs_pos"):
         if k in floats:
@@ -123,7 +126,7 @@ _POSITIVE = (
     "Lx", "Ly", "tau", "H", "P_n", "noise", "B", "r_arr", "a_max", "v_max",
     "P_b", "B_b", "L_cmd", "beta", "f_c", "c",
 )
-_NON_NEGATIVE = ("proc_max", "bs_h", "r_g", "P_miss", "kappa_d", "kappa_c", "eps")
+_NON_NEGATIVE = ("proc_max", "bs_h", "r_g", "P_miss", "kappa_d", "kappa_c", "eps", "airspace_margin")
 
 
 def _concrete(x):
@@ -144,7 +147,7 @@ def validate_params(params: EnvParams) -> None:
             raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
     vals = {k: _concrete(getattr(params, k)) for k in params.__dataclass_fields__ if k not in _STATIC}
     for name, v in vals.items():
-        if v is not None and name not in ("device_img",) and not np.all(np.isfinite(v)):
+        if v is not None and name not in ("device_img", "airspace_margin") and not np.all(np.isfinite(v)):
             raise ValueError(f"{name} must be finite, got {v}")
     for name in _POSITIVE:
         v = vals[name]

@@ -18,6 +18,22 @@ def a2g_rate(r, dh, power, bandwidth, p):
     return bandwidth * math.log2(1 + snr)
 
 
+def speed_cap(v, w, R, h, iters=2000):
+    """The point of {|x| <= R} and {|x - v|_inf <= h} nearest to v + w, by Dykstra's alternating
+    projections (independent of the closed form in kinematics.py); v + w when |v + w| <= R."""
+    c = v + w
+    if np.linalg.norm(c) <= R:
+        return c
+    x, p, q = c.copy(), np.zeros(2), np.zeros(2)
+    for _ in range(iters):
+        y = x + p
+        y_new = y * min(1.0, R / np.linalg.norm(y))
+        p, z = y - y_new, y_new + q
+        x = np.clip(z, v - h, v + h)
+        q = z - x
+    return x
+
+
 class NumpyEnv:
     """State: q, v, a_prev, t, m, phi, dev_pos, dev_img, done, arrived."""
 
@@ -41,13 +57,10 @@ class NumpyEnv:
         rb = a2g_rate(np.linalg.norm(self.q - p["bs_pos"]), p["H"] - p["bs_h"], p["P_b"], p["B_b"], p)
         delay = min(p["tau"], u * p["proc_max"] + p["L_cmd"] / rb)
         a_eff = (delay * self.a_prev + (p["tau"] - delay) * a) / p["tau"]
-        v = self.v + a_eff * p["tau"]
-        speed = np.linalg.norm(v)
-        if speed > p["v_max"]:
-            v = v * p["v_max"] / speed
-        q_raw = self.q + v * p["tau"]
-        q = np.clip(q_raw, 0, [p["Lx"], p["Ly"]])
-        v[q != q_raw] = 0.0
+        v = speed_cap(self.v, a_eff * p["tau"], p["v_max"], p["a_max"] * p["tau"])
+        q = self.q + v * p["tau"]  # no wall: the UAV may leave the area
+        m = p.get("airspace_margin", math.inf)
+        outside = bool(np.any(q < -m) or q[0] > p["Lx"] + m or q[1] > p["Ly"] + m)
         dist_prev = np.linalg.norm(self.q - p["q_fin"])
         r = np.linalg.norm(self.dev_pos - q, axis=1)
         x = (np.hypot(r, p["H"]) <= p["D_com"]) & (self.m < p["M"])
@@ -58,7 +71,7 @@ class NumpyEnv:
         self.phi = self.C[self.dev_img, np.floor(self.m).astype(int)]
         self.q, self.v, self.a_prev, self.t = q, v, a, self.t + 1
         self.arrived = np.linalg.norm(q - p["q_fin"]) <= p["r_arr"]
-        self.done = self.arrived or self.t >= p["K"]
+        self.done = self.arrived or self.t >= p["K"] or outside
         if p["reward_mode"] == "paper":
             r_c = (x * self.phi).sum() / (x.sum() + p["eps"])
         else:

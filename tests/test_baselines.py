@@ -3,15 +3,14 @@
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
-from baselines.controller import feasible, speed_command
 from baselines.evaluate import resolve, tsp_ranks
-from baselines.policies import greedy, init_state, straight, tsp
+from baselines.policies import MARGIN_S, feasible, greedy, init_state, straight, tsp
 from baselines.tsp import solve_order
+from semuav_jax.control import home_command, speed_command
 from semuav_jax.env import initial_state
 from semuav_jax.params import make_params
+from test_control import time_home_by_hand
 
 V_B = 8.9
 
@@ -22,43 +21,35 @@ def state_at(params, dev_pos, q=(0.0, 300.0), v=(0.0, 0.0), t=0):
     return s.replace(q=jnp.asarray(q, jnp.float32), v=jnp.asarray(v, jnp.float32), t=jnp.int32(t))
 
 
-def test_speed_command_by_hand(params):
-    q = jnp.array([0.0, 0.0])
-    # from rest towards +x: (8.9 - 0) / 0.5 = 17.8 -> clipped to a_max = 5
-    np.testing.assert_allclose(speed_command(q, jnp.zeros(2), jnp.array([100.0, 0.0]), V_B, params), [5.0, 0.0])
-    # cruising at v_b towards the target: no command
-    np.testing.assert_allclose(speed_command(q, jnp.array([V_B, 0.0]), jnp.array([100.0, 0.0]), V_B, params), [0.0, 0.0])
-    # 0.5 m/s short: (8.9 - 8.4) / 0.5 = 1.0
-    np.testing.assert_allclose(speed_command(q, jnp.array([8.4, 0.0]), jnp.array([100.0, 0.0]), V_B, params), [1.0, 0.0], rtol=1e-5)
-    # a right-angle turn: (-17.8, 17.8) -> (-5, 5)
-    np.testing.assert_allclose(speed_command(q, jnp.array([V_B, 0.0]), jnp.array([0.0, 100.0]), V_B, params), [-5.0, 5.0])
-    # at the target itself: brake, no NaN
-    np.testing.assert_allclose(speed_command(q, jnp.array([1.0, -2.0]), q, V_B, params), [-2.0, 4.0])
-
-
-@settings(max_examples=200, deadline=None)
-@given(
-    st.lists(st.floats(-2000, 2000), min_size=6, max_size=6),
-    st.floats(0.1, 40.0),
-)
-def test_speed_command_never_exceeds_a_max(params, xs, v_b):
-    a = speed_command(jnp.array(xs[:2]), jnp.array(xs[2:4]) / 50.0, jnp.array(xs[4:]), v_b, params)
-    assert np.all(np.abs(np.asarray(a)) <= params.a_max)
+def need_by_hand(q, v, p, v_b):
+    """Eq. 7.6's left side, from docs/model.md: eq. 7.4 to p_n, eq. 7.5 from p_n, plus MARGIN_S."""
+    d = np.subtract(p, q)
+    u = d / np.linalg.norm(d)
+    along = np.dot(v, u)
+    side = np.subtract(v, along * u)
+    drift = (side @ side + min(along, 0.0) ** 2) / 10.0
+    to_p = np.max(np.abs(v_b * u - np.asarray(v))) / 5.0 + (np.linalg.norm(d) + drift) / v_b
+    return to_p + time_home_by_hand(p, v_b * u, v_b, v_b) + MARGIN_S
 
 
 def test_feasibility_by_hand(params):
-    dev = jnp.array([[500.0, 300.0], [500.0, 600.0], [1000.0, 300.0]])
-    q = jnp.array([0.0, 300.0])
-    # detours: 1000 m -> 112.4 s <= 125 s; 2 * 583.1 m -> 131.0 s > 125 s; 1000 m -> feasible
-    np.testing.assert_array_equal(feasible(q, 0, dev, V_B, params), [True, False, True])
-    # at t = 25 only 112.5 s are left: 1000 m still fits (112.36 s); at t = 26 (112.0 s) it does not
-    np.testing.assert_array_equal(feasible(q, 25, dev, V_B, params), [True, False, True])
-    np.testing.assert_array_equal(feasible(q, 26, dev, V_B, params), [False, False, False])
-    # a faster UAV makes the far device feasible: 1166.2 m / 10 m/s = 116.6 s
-    np.testing.assert_array_equal(feasible(q, 0, dev, 10.0, params), [True, True, True])
+    dev = [[500.0, 300.0], [500.0, 600.0], [900.0, 300.0]]
+    q, v = [0.0, 300.0], [0.0, 0.0]
+    # from rest at q0 through (500, 300) at 8.9 m/s: 1.78 + 56.18 s, then 52.62 s cruise + 2.22 s brake, + 1 s
+    assert need_by_hand(q, v, dev[0], V_B) == pytest.approx(1.78 + 500 / 8.9 + 52.620 + 2.221 + 1.0, abs=1e-3)
+    need = [need_by_hand(q, v, p, V_B) for p in dev]
+    feas = lambda t, v_b=V_B: np.asarray(feasible(jnp.array(q), jnp.array(v), t, jnp.array(dev), v_b, params))
+    np.testing.assert_array_equal(feas(0), [n <= 125.0 for n in need])
+    np.testing.assert_array_equal(feas(0), [True, False, True])
+    # the boundary slot of each feasible device: (K - t) tau >= need
+    for n in (0, 2):
+        t_last = int(np.floor(250 - 2 * need[n]))
+        assert feas(t_last)[n] and not feas(t_last + 1)[n]
+    # a faster UAV makes the far device feasible: 583.1 m each way at 10 m/s
+    assert need_by_hand(q, v, dev[1], 10.0) < 125.0 and feas(0, 10.0)[1]
 
 
-# A: nearest (250 m) but infeasible (250 + 1030.8 m = 143.9 s); B: 291.5 m, feasible (118.7 s); C: far, feasible.
+# A: nearest (250 m) but infeasible (250 + 1030.8 m > 125 s at 8.9 m/s); B: 291.5 m, feasible; C: far, feasible.
 A, B, C = [0.0, 50.0], [250.0, 450.0], [700.0, 300.0]
 
 
@@ -69,7 +60,7 @@ def test_greedy_first_target_is_nearest_feasible_device(params):
     np.testing.assert_allclose(a, [0.0, 0.0], atol=1e-5)
     np.testing.assert_allclose(a, speed_command(s.q, s.v, jnp.array(B), V_B, params))
     assert not np.any(ps.passed)
-    # at 12 m/s A's detour takes 106.7 s, so A (the nearest) becomes feasible and the target
+    # at 12 m/s A's detour fits (1280.8 m / 12 = 106.7 s plus turns), so A (the nearest) is the target
     a_fast, _ = greedy(init_state(12.0, jnp.arange(3)), s, params)
     np.testing.assert_allclose(a_fast, speed_command(s.q, s.v, jnp.array(A), 12.0, params))
 
@@ -103,8 +94,8 @@ def test_reached_target_is_passed_and_the_next_one_taken(policy, params):
 def test_no_feasible_device_means_fly_to_destination(policy, params):
     s = state_at(params, [[500.0, 500.0], [200.0, 100.0]], q=(600.0, 300.0), v=(0.0, 4.0), t=200)
     a, ps = policy(init_state(V_B, jnp.array([0, 1])), s, params)
-    np.testing.assert_allclose(a, speed_command(s.q, s.v, params.q_fin, V_B, params))
-    np.testing.assert_allclose(a, [5.0, -5.0])  # (17.8, -8) clipped
+    np.testing.assert_allclose(a, home_command(s.q, s.v, V_B, params))
+    np.testing.assert_allclose(a, [5.0, -5.0])  # 400 m out the approach speed is v_b: (17.8, -8) clipped
     assert not np.any(ps.passed)
 
 

@@ -13,7 +13,7 @@ from semuav_jax.actions import action_table
 from semuav_jax.env import SemUAVEnv, bandwidth_shares, initial_state, transition, transition_u
 from semuav_jax.observation import obs_size, observation
 from semuav_jax.params import make_params
-from reference_numpy import NumpyEnv, a2g_rate, params_dict
+from reference_numpy import NumpyEnv, a2g_rate, params_dict, speed_cap
 
 step_u = jax.jit(transition_u)
 
@@ -93,7 +93,8 @@ def test_invariants(curves, seed, proc_max, v_max):
     for prev, s in zip(states, states[1:]):
         assert np.all(np.abs(np.asarray(s.a_prev)) <= p.a_max + 1e-6)
         assert float(jnp.linalg.norm(s.v)) <= v_max * (1 + 1e-5)
-        assert 0 <= float(s.q[0]) <= 1000 and 0 <= float(s.q[1]) <= 600
+        if not bool(prev.done):  # no wall, no free brake: a velocity component moves by <= a_max tau
+            assert np.all(np.abs(np.asarray(s.v) - np.asarray(prev.v)) <= p.a_max * p.tau * (1 + 1e-5) + 1e-5)
         assert 0 <= float(s.delay) <= p.tau
         assert np.all(np.asarray(s.m) >= np.asarray(prev.m)) and np.all(np.asarray(s.m) <= p.M)
         assert np.all((np.asarray(s.phi) >= lo) & (np.asarray(s.phi) <= hi))
@@ -125,6 +126,58 @@ def test_miss_penalty_at_K(curves):
     assert float(r) == pytest.approx(-500.0)  # no motion, no data: only the miss penalty
 
 
+def test_no_wall_the_uav_flies_on_beyond_the_area(curves):
+    # at (995, 300) with v = (20, 0) and no command: 10 m per slot, straight on past x = 1000
+    p = make_params(curves, proc_max=0.0, q_fin=[0.0, 0.0], K=10)
+    s = env.reset_state(jax.random.key(0), p).replace(q=jnp.array([995.0, 300.0]), v=jnp.array([20.0, 0.0]))
+    for k in range(1, 4):
+        s, _ = step_u(0.0, s, jnp.zeros(2), p)
+        np.testing.assert_allclose(s.q, [995.0 + 10.0 * k, 300.0], rtol=1e-6)
+        np.testing.assert_allclose(s.v, [20.0, 0.0])
+        assert not bool(s.done)
+
+
+def test_leaving_the_airspace_ends_the_episode_as_a_miss(curves):
+    # airspace_margin = 12 m: x = 1005 is inside the bound, x = 1015 (> 1012) ends the episode
+    p = make_params(curves, proc_max=0.0, q_fin=[0.0, 0.0], K=10, airspace_margin=12.0, reward_mode="gain",
+                    kappa_d=0.0)
+    s = env.reset_state(jax.random.key(0), p).replace(q=jnp.array([995.0, 300.0]), v=jnp.array([20.0, 0.0]))
+    s, r = step_u(0.0, s, jnp.zeros(2), p)
+    assert not bool(s.done) and float(r) == 0.0
+    s, r = step_u(0.0, s, jnp.zeros(2), p)
+    assert bool(s.done) and not bool(s.arrived) and int(s.t) == 2
+    assert float(r) == pytest.approx(-500.0)  # -P_miss, as at t = K
+    assert float(make_params(curves, airspace_margin=None).airspace_margin) == np.inf
+
+
+def test_speed_cap_by_hand(curves):
+    p = make_params(curves, proc_max=0.0, L_cmd=1e-9)
+    s = env.reset_state(jax.random.key(0), p)
+
+    def step(v, a):
+        return np.asarray(step_u(0.0, s.replace(v=jnp.array(v), a_prev=jnp.array(a)), jnp.array(a), p)[0].v)
+
+    # under the cap: v + a tau
+    np.testing.assert_allclose(step([10.0, 0.0], [5.0, 5.0]), [12.5, 2.5], rtol=1e-6)
+    # the radial scaling of MODEL.md when it moves each axis by <= a_max tau = 2.5:
+    # (25, 2.5) -> 25 (25, 2.5) / 25.125 = (24.876, 2.4876)
+    np.testing.assert_allclose(step([25.0, 0.0], [0.0, 5.0]), np.array([25.0, 2.5]) * 25 / np.hypot(25, 2.5), rtol=1e-5)
+    # from (-17.68, 17.68) (|v| = 25) with (5, 5): v + w = (-15.18, 20.18), radially (-15.03, 19.97)
+    # would move x by 2.65 > 2.5; the nearest point of the disk on the edge x = -15.18 is
+    # (-15.18, sqrt(625 - 15.18^2) = 19.86)
+    v0 = 25 / np.sqrt(2)
+    np.testing.assert_allclose(step([-v0, v0], [5.0, 5.0]), [-v0 + 2.5, np.sqrt(625 - (v0 - 2.5) ** 2)], rtol=1e-5)
+    # the closed form against Dykstra's projections (reference_numpy) on random states at the cap
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        ang = rng.uniform(0, 2 * np.pi)
+        v = 25 * rng.uniform(0.9, 1.0) * np.array([np.cos(ang), np.sin(ang)])
+        a = rng.uniform(-5, 5, 2)
+        out = step(v, a)
+        np.testing.assert_allclose(out, speed_cap(v, a * 0.5, 25.0, 2.5), atol=1e-3)
+        assert np.linalg.norm(out) <= 25 * (1 + 1e-6) and np.all(np.abs(out - v) <= 2.5 + 1e-5)
+
+
 def test_gain_reward_is_psnr_increase(curves):
     q = np.array([500.0, 300.0])
     p = make_params(curves, device_pos=[q], device_img=[3], layout="fixed", reward_mode="gain", kappa_d=0.0)
@@ -143,7 +196,7 @@ def test_matches_numpy_reference(curves, mode):
         for t in range(p.K):
             r_ref = ref.step(acts[t], float(us[t]))
             s = states[t + 1]
-            np.testing.assert_allclose(s.q, ref.q, atol=2e-3)
+            np.testing.assert_allclose(s.q, ref.q, rtol=2e-5, atol=2e-3)  # float32 over K slots
             np.testing.assert_allclose(s.m, ref.m, rtol=1e-3, atol=1e-3)
             assert rewards[t] == pytest.approx(r_ref, rel=1e-3, abs=1e-3)
             assert bool(s.done) == ref.done
@@ -184,12 +237,16 @@ def test_gymnax_interface(params):
     assert obs.shape == (obs_size(params),) == (59,) and obs.dtype == jnp.float32
     assert e.num_actions == 9 and e.action_space(params).n == 9
     assert e.observation_space(params).shape == (59,)
+    low, high = e.observation_space(params).low, e.observation_space(params).high
+    # v, a, time left, m, x, phi in [-1, 1] / [0, 1]; offsets up to 1 + v_max K tau / min(Lx, Ly) = 1 + 3125 / 600
+    np.testing.assert_allclose(high[:9], [1 + 3125 / 600] * 2 + [1] * 5 + [1 + 3125 / 600] * 2, rtol=1e-6)
+    np.testing.assert_allclose(low[9:14], [-(1 + 3125 / 600)] * 2 + [0, 0, 0], rtol=1e-6)
     assert bool(e.action_space(params).contains(e.action_space(params).sample(key)))
     step = jax.jit(e.step)
     for t in range(300):  # longer than K: the auto-reset must kick in
         key, k1, k2 = jax.random.split(key, 3)
         obs, state, r, done, info = step(k1, state, e.action_space(params).sample(k2), params)
-        assert np.all(np.abs(np.asarray(obs)) <= 1.0 + 1e-6) and np.isfinite(float(r))
+        assert bool(e.observation_space(params).contains(obs)) and np.isfinite(float(r))
         if bool(done):
             assert int(state.t) == 0 and float(info["discount"]) == 0.0
             break

@@ -9,23 +9,10 @@ import pytest
 
 from semuav_jax.actions import action_to_accel
 from semuav_jax.agents.ddqn import DDQNConfig, make_train
-from semuav_jax.agents.shield import home_action, home_speed, shield, time_home
+from semuav_jax.agents.shield import airspace_action, home_action, home_speed, shield, shield_time_home as time_home
 from semuav_jax.env import reset_state
 from semuav_jax.rollout import episode
-
-
-def _time_home_by_hand(q, v, v_home, a=5.0, r=15.0, q_fin=(1000.0, 300.0)):
-    diff = np.subtract(q_fin, q)
-    dist = np.linalg.norm(diff)
-    u = diff / dist
-    along = np.dot(v, u)
-    side = np.subtract(v, along * u)
-    c = 2 * 0.25 * a  # the approach brakes with a quarter of a_max
-    over = max(along**2 - min(25.0**2, c * dist), 0.0)  # faster than the approach speed sqrt(c d)
-    d = dist + (side @ side + min(along, 0.0) ** 2 + 2 * over) / (2 * a)  # drift while turning
-    d0 = v_home**2 / c  # where the braking profile sqrt(c d) reaches the home speed
-    brake = 2 * (np.sqrt(np.clip(d, r, d0)) - np.sqrt(r)) / np.sqrt(c)
-    return np.max(np.abs(v_home * u - np.asarray(v))) / a + max(d - d0, 0.0) / v_home + brake
+from test_control import time_home_by_hand
 
 
 def test_time_home_by_hand(params):
@@ -44,7 +31,7 @@ def test_time_home_by_hand(params):
     assert th([950.0, 300.0], [25.0, 0.0]) > th([950.0, 300.0], [11.0, 0.0]) + 4.0  # 10.95 s vs 6.50 s
     for q, v in (([120.0, 40.0], [-20.0, 7.0]), ([980.0, 330.0], [15.0, 20.0]), ([700.0, 590.0], [3.0, 1.0]),
                  ([950.0, 300.0], [25.0, 0.0])):
-        assert th(q, v) == pytest.approx(_time_home_by_hand(q, v, v_home), rel=1e-5)
+        assert th(q, v) == pytest.approx(time_home_by_hand(q, v, 25.0, v_home), rel=1e-5)
     # inside the arrival disk at rest: only the turn (acceleration) term is left
     assert th([990.0, 300.0], [0.0, 0.0]) == pytest.approx(v_home / 5.0)
 

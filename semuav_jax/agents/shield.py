@@ -1,20 +1,22 @@
-"""The BS's return-home shield around the DDQN's action choice (docs/ddqn.md, "Shield").
+"""The BS's shield around the DDQN's action choice (docs/ddqn.md, "Shield").
 
 An agent that hovers too long misses the destination (MODEL.md section 3, step 6; r_miss of
-section 4). The BS knows the UAV's state, so before sending the agent's command it checks
-whether the time left still covers a conservative flight home; when it no longer does, it sends
-instead the table action (eq. 6.1) nearest to the section-7 speed controller aimed at q_fin (at
-v_max, slowing down near q_fin). The same shield acts in training (the replay memory stores the
-action that was sent) and in evaluation, so it is part of the policy, not a change of the
-environment.
+section 4), and with an ``airspace_margin`` one that flies too far out fails. The BS knows the
+UAV's state, so before sending the agent's command it checks (1) whether the time left still
+covers a conservative flight home (docs/model.md eq. 7.5); when it no longer does, it sends the
+table action (eq. 6.1) nearest to the controller's home command (eq. 7.1 at v_max, braking near
+q_fin); (2) otherwise, on each axis where the command would leave the velocity above the
+airspace braking cap (eq. 7.2), it sends the strongest table level that keeps it below. The same
+shield acts in training (the replay memory stores the action that was sent) and in evaluation,
+so it is part of the policy, not a change of the environment.
 """
 
 from __future__ import annotations
 
 import jax.numpy as jnp
 
-from baselines.controller import speed_command
 from semuav_jax.actions import action_table
+from semuav_jax.control import airspace_cap, home_command, time_home
 from semuav_jax.params import EnvParams
 
 
@@ -25,57 +27,39 @@ def home_speed(params: EnvParams):
     return jnp.maximum(params.v_max - dead, 0.5 * params.v_max)
 
 
-BRAKE = 0.25  # share of a_max the approach brakes with; the rest steers onto q_fin
-
-
-def approach_speed(dist, params: EnvParams):
-    """Speed the home command aims at, ``dist`` metres from q_fin: v_max, capped near q_fin at
-    sqrt(2 BRAKE a_max dist), the speed from which braking at BRAKE a_max stops at q_fin. At full
-    speed the turn radius v_max^2 / a_max = 125 m would make the UAV circle the 15 m disk."""
-    return jnp.minimum(params.v_max, jnp.sqrt(2.0 * BRAKE * params.a_max * dist))
-
-
-def time_home(q, v, params: EnvParams):
-    """Conservative seconds to reach the arrival disk from (q, v) under :func:`home_action`.
-
-    Turn the velocity onto the home course at a_max per axis (max_i |v_home u_i - v_i| / a_max,
-    counted without progress), while drifting up to w^2 / (2 a_max) further for every velocity
-    component w that does not point home (sideways, or away), and overshooting q_fin and coming
-    back by twice (w^2 - s^2) / (2 a_max) when the speed w towards home exceeds
-    s = approach_speed; then cruise at the home speed and brake along :func:`approach_speed`
-    over the last v_home^2 / (2 BRAKE a_max) metres down to r_arr.
-    """
-    a, r = params.a_max, params.r_arr
-    v_home = home_speed(params)
-    diff = params.q_fin - q
-    dist = jnp.linalg.norm(diff)
-    u = diff / jnp.maximum(dist, 1e-6)
-    along = jnp.dot(v, u)
-    side = v - along * u
-    over = jnp.maximum(along * along - approach_speed(dist, params) ** 2, 0.0)  # too fast to brake in time
-    drift = (jnp.sum(side * side) + jnp.minimum(along, 0.0) ** 2 + 2.0 * over) / (2.0 * a)
-    d = dist + drift
-    c = 2.0 * BRAKE * a
-    d0 = v_home * v_home / c
-    brake = 2.0 * (jnp.sqrt(jnp.clip(d, r, d0)) - jnp.sqrt(r)) / jnp.sqrt(c)
-    cruise = jnp.maximum(d - d0, 0.0) / v_home
-    return jnp.max(jnp.abs(v_home * u - v)) / a + cruise + brake
+def shield_time_home(q, v, params: EnvParams):
+    """Eq. 7.5 for the home command at v_max with the table's cruise speed :func:`home_speed`."""
+    return time_home(q, v, params.v_max, params, cruise=home_speed(params))
 
 
 def home_action(q, v, params: EnvParams):
-    """Index of the table action nearest to the speed controller's command towards q_fin at
-    :func:`approach_speed`."""
-    dist = jnp.linalg.norm(params.q_fin - q)
-    a = speed_command(q, v, params.q_fin, approach_speed(dist, params), params)
+    """Index of the table action nearest to the controller's home command (eq. 7.1 towards q_fin)."""
+    a = home_command(q, v, params.v_max, params)
     return jnp.argmin(jnp.sum((action_table(params) - a) ** 2, axis=-1))
 
 
+def airspace_action(action, q, v, params: EnvParams):
+    """``action`` with each axis level lowered (towards braking) just enough that v + a tau stays
+    within the airspace cap of eq. 7.2; unchanged without an ``airspace_margin``."""
+    lv = jnp.linspace(-1.0, 1.0, params.levels) * params.a_max
+    i = jnp.stack([action // params.levels, action % params.levels])
+    a = lv[i]
+    v_next = v + a * params.tau
+    capped = airspace_cap(q, v_next, params)
+    need = (capped - v) / params.tau  # the acceleration that respects the cap
+    # the strongest level <= need where the cap binds above, >= need where it binds below
+    up = jnp.clip(jnp.searchsorted(lv, need, side="right") - 1, 0, params.levels - 1)
+    down = jnp.clip(jnp.searchsorted(lv, need, side="left"), 0, params.levels - 1)
+    i = jnp.where(v_next > capped, jnp.minimum(i, up), jnp.where(v_next < capped, jnp.maximum(i, down), i))
+    return i[0] * params.levels + i[1]
+
+
 def shield(action, state, params: EnvParams, margin: float | None):
-    """The action the BS sends: ``action``, or :func:`home_action` once the time left after this
-    slot, (K - t - 1) tau, is at most :func:`time_home` + ``margin`` seconds (never when
-    ``margin`` is None: no shield)."""
+    """The action the BS sends: :func:`home_action` once the time left after this slot,
+    (K - t - 1) tau, is at most :func:`shield_time_home` + ``margin`` seconds; else ``action``
+    kept inside the airspace (:func:`airspace_action`). ``margin`` None: no shield at all."""
     if margin is None:
         return action
     left = (params.K - state.t - 1) * params.tau
-    late = left <= time_home(state.q, state.v, params) + margin
-    return jnp.where(late, home_action(state.q, state.v, params), action)
+    late = left <= shield_time_home(state.q, state.v, params) + margin
+    return jnp.where(late, home_action(state.q, state.v, params), airspace_action(action, state.q, state.v, params))
