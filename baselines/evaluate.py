@@ -48,6 +48,15 @@ def tsp_ranks(keys, params: EnvParams, time_limit_ms: int = tsp_solver.DEFAULT_T
     return np.argsort(orders, axis=-1).astype(np.int32)
 
 
+def check_speeds(v_b):
+    """v_b as a float32 array, or a one-line ValueError naming a speed that is not finite and > 0."""
+    v = np.atleast_1d(np.asarray(v_b, np.float64))
+    bad = v[~(np.isfinite(v) & (v > 0))]
+    if bad.size:
+        raise ValueError(f"v_b must be finite and > 0 m/s, got {bad[0]}")
+    return jnp.asarray(v, jnp.float32)
+
+
 def run(policy, keys, params: EnvParams, policy_state, state_axes=0, init_state=None):
     """Metrics (dict of (E,) arrays, MODEL.md section 8) of ``policy`` over the episodes ``keys``.
 
@@ -79,8 +88,11 @@ def evaluate(policy, keys, params: EnvParams, v_b=DEFAULT_V_B, rank=None, **tsp_
     unless ``rank`` (E, N) is given (``tsp_kwargs`` go to :func:`tsp_ranks`).
     """
     validate_params(params)
+    v_b = check_speeds(v_b)
+    if v_b.size != 1:
+        raise ValueError(f"evaluate takes one speed v_b; use sweep for several, got {v_b.size}")
     rank = _ranks(policy, keys, params, rank, **tsp_kwargs)
-    return jax.tree.map(np.asarray, baseline_metrics(resolve(policy), keys, params, jnp.float32(v_b), rank))
+    return jax.tree.map(np.asarray, baseline_metrics(resolve(policy), keys, params, v_b[0], rank))
 
 
 @partial(jax.jit, static_argnames=("policy",))
@@ -95,7 +107,10 @@ def sweep(policy, keys, params: EnvParams, v_b=(DEFAULT_V_B,), B=None, rank=None
     ``B`` defaults to ``params.B``; every point uses the same episodes (layouts, delays, seeds).
     """
     validate_params(params)
+    v_b = check_speeds(v_b)
+    B = np.atleast_1d(np.asarray(params.B if B is None else B, np.float64))
+    if not np.all(np.isfinite(B) & (B > 0)):
+        raise ValueError(f"B must be finite and > 0 Hz, got {B[~(np.isfinite(B) & (B > 0))][0]}")
     rank = _ranks(policy, keys, params, rank, **tsp_kwargs)
-    B = jnp.atleast_1d(jnp.asarray(params.B if B is None else B, jnp.float32))
-    v_b = jnp.atleast_1d(jnp.asarray(v_b, jnp.float32))
+    B = jnp.asarray(B, jnp.float32)
     return jax.tree.map(np.asarray, _sweep(resolve(policy), keys, params, v_b, B, rank))

@@ -1,9 +1,12 @@
-"""Baseline report: greedy, TSP and straight flight on random default layouts (MODEL.md sections 7-8).
+"""The reference table of docs/baselines.md: greedy and TSP at the paper's 8.9 m/s and at their
+tuned speed v_b*, the offline planner and the upper bound, per bandwidth.
 
-``python -m baselines.report [--episodes 1000] [--json out.json] [--synthetic]`` prints the mean
-PSNR, coverage and arrival of each baseline at the default bandwidth and speed, a bandwidth and
-a speed sweep on the same episodes, and the OR-Tools time per layout; ``--json`` writes them.
-Uses the shipped DeepJSCC curves unless ``--curves`` or ``--synthetic`` says otherwise.
+``python -m baselines.report [--episodes 1000] [--validation-episodes 500] [--json out.json]``
+
+v_b* is chosen per bandwidth on the validation layouts (``keys.VALIDATION_SEED``) from
+``SPEED_GRID`` as the best mean PSNR among the speeds that arrive in >= ``ARRIVAL_MIN`` of
+episodes, in one vmapped program per baseline; every reported number comes from the test
+layouts (``keys.TEST_SEED``), the same episodes for every policy.
 """
 
 from __future__ import annotations
@@ -12,97 +15,124 @@ import argparse
 import json
 import time
 
-import jax
 import numpy as np
 
-from baselines.evaluate import sweep, tsp_ranks
-from baselines.policies import DEFAULT_V_B, POLICIES
-from baselines.tsp import DEFAULT_TIME_LIMIT_MS
-from semuav_jax.curves import load_curves, synthetic_curves
+from baselines.bound import psnr_bound
+from baselines.evaluate import run, sweep, tsp_ranks
+from baselines.planner import make_plans, planner
+from baselines.policies import DEFAULT_V_B
+from semuav_jax.io import atomic_write
+from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import make_params
+from semuav_jax.stats import mean_ci, wilson_interval
 
-BANDWIDTHS = (5e3, 10e3, 20e3, 40e3)
-SPEEDS = (4.0, DEFAULT_V_B, 14.0, 20.0, 24.0)
-
-
-def _summary(m: dict) -> dict:
-    covered = m["coverage"] > 0
-    return {
-        "mean_psnr": float(m["mean_psnr"].mean()),
-        "mean_psnr_sem": float(m["mean_psnr"].std(ddof=1) / np.sqrt(m["mean_psnr"].size)),
-        "coverage": float(m["coverage"].mean()),
-        "psnr_visited": float(m["psnr_visited"][covered].mean()) if covered.any() else None,
-        "arrived": float(m["arrived"].mean()),
-        "mission_time": float(m["mission_time"].mean()),
-    }
+SPEED_GRID = tuple(float(v) for v in range(6, 26))  # m/s, 6..25 in 1 m/s steps
+BANDWIDTHS = (5e3, 20e3, 25e3, 40e3)  # Hz
+ARRIVAL_MIN = 0.995
+TUNED = ("greedy", "tsp")
 
 
-def report(params, episodes: int, seed: int, time_limit_ms: int, workers: int) -> dict:
-    """All numbers of the report (JSON-ready); every policy and sweep point uses the same episodes."""
-    keys = jax.random.split(jax.random.PRNGKey(seed), episodes)
-    t0 = time.perf_counter()
-    rank = tsp_ranks(keys, params, time_limit_ms=time_limit_ms, workers=workers)
-    tsp_seconds = time.perf_counter() - t0
-    B = sorted(set(BANDWIDTHS) | {float(params.B)})
-    i_b, i_v = B.index(float(params.B)), SPEEDS.index(DEFAULT_V_B)
-    out = {
-        "episodes": episodes, "seed": seed, "B": float(params.B), "v_b": DEFAULT_V_B, "N": params.N,
-        "ortools": {"time_limit_ms": time_limit_ms, "workers": workers, "wall_s_per_layout": tsp_seconds / episodes},
-        "baselines": {}, "bandwidth_sweep": {"B": B}, "speed_sweep": {"v_b": list(SPEEDS)},
-    }
-    for name in POLICIES:
-        m = sweep(name, keys, params, v_b=SPEEDS, B=B, rank=rank)
-        out["baselines"][name] = _summary({k: v[i_b, i_v] for k, v in m.items()})
-        out["bandwidth_sweep"][name] = [_summary({k: v[j, i_v] for k, v in m.items()}) for j in range(len(B))]
-        out["speed_sweep"][name] = [_summary({k: v[i_b, j] for k, v in m.items()}) for j in range(len(SPEEDS))]
+def tune(params, bandwidths=BANDWIDTHS, episodes: int = 500, grid=SPEED_GRID, workers: int = 2) -> dict:
+    """v_b* per bandwidth for each of ``TUNED`` on the validation layouts, and the grid's means."""
+    keys = episode_keys(VALIDATION_SEED, episodes)
+    rank = tsp_ranks(keys, params, workers=workers)
+    out = {"grid": list(grid), "episodes": episodes}
+    for name in TUNED:
+        m = sweep(name, keys, params, v_b=grid, B=bandwidths, rank=rank)
+        psnr, arrived = m["mean_psnr"].mean(-1), m["arrived"].mean(-1)
+        best = np.argmax(np.where(arrived >= ARRIVAL_MIN, psnr, -np.inf), axis=1)
+        out[name] = {"v_star": [float(grid[i]) for i in best], "mean_psnr": psnr.tolist(), "arrived": arrived.tolist()}
     return out
 
 
+def _summary(psnr, coverage, arrived) -> dict:
+    mean, ci = mean_ci(psnr)
+    lo, hi = wilson_interval(arrived.mean(), arrived.size)
+    return {"mean_psnr": mean, "ci95": ci, "coverage": float(coverage.mean()), "arrived": float(arrived.mean()),
+            "arrived_wilson95": [float(lo), float(hi)]}
+
+
+def report(params, bandwidths=BANDWIDTHS, episodes: int = 1000, validation_episodes: int = 500, workers: int = 2,
+           log=print) -> dict:
+    """Every number of the table (JSON-ready)."""
+    t0 = time.perf_counter()
+    tuned = tune(params, bandwidths, validation_episodes, workers=workers)
+    log(f"v_b* chosen on {validation_episodes} validation layouts ({time.perf_counter() - t0:.0f} s): "
+        + ", ".join(f"{n} {tuned[n]['v_star']}" for n in TUNED))
+    keys = episode_keys(TEST_SEED, episodes)
+    rank = tsp_ranks(keys, params, workers=workers)
+    speeds = sorted({DEFAULT_V_B, *[v for n in TUNED for v in tuned[n]["v_star"]]})
+    flights = {n: sweep(n, keys, params, v_b=speeds, B=bandwidths, rank=rank) for n in TUNED}
+    rows = []
+    for j, b in enumerate(bandwidths):
+        pb = params.replace(B=b)
+        t1 = time.perf_counter()
+        plan = make_plans(keys, pb, workers=workers)
+        pm = {k: np.asarray(v) for k, v in run(planner, keys, pb, plan).items()}
+        plan_s = time.perf_counter() - t1
+        row = {"B": float(b), "policies": {}}
+        for n in TUNED:
+            for label, v in ((f"{n} {DEFAULT_V_B:g}", DEFAULT_V_B), (f"{n} v_b*", tuned[n]["v_star"][j])):
+                i = speeds.index(v)
+                m = {k: x[j, i] for k, x in flights[n].items()}
+                row["policies"][label] = {"v_b": v, **_summary(m["mean_psnr"], m["coverage"], m["arrived"])}
+        row["policies"]["planner"] = {"v_b": None, **_summary(pm["mean_psnr"], pm["coverage"], pm["arrived"]),
+                                      "wall_s": plan_s}
+        g = flights["greedy"]["mean_psnr"][j, speeds.index(tuned["greedy"]["v_star"][j])]
+        row["planner_minus_tuned_greedy"] = mean_ci(pm["mean_psnr"] - g)
+        bound = psnr_bound(keys, pb)
+        row["bound"] = float(bound.mean())
+        rows.append(row)
+        d, ci = row["planner_minus_tuned_greedy"]
+        log(f"B = {b / 1e3:g} kHz: planner {row['policies']['planner']['mean_psnr']:.2f} dB "
+            f"({d:+.2f} ± {ci:.2f} vs greedy at v_b*), bound {row['bound']:.2f} dB, planner {plan_s:.0f} s")
+    return {"episodes": episodes, "test_seed": TEST_SEED, "validation_seed": VALIDATION_SEED, "N": params.N,
+            "arrival_min": ARRIVAL_MIN, "tuning": tuned, "rows": rows, "wall_s": time.perf_counter() - t0}
+
+
 def markdown(r: dict) -> str:
-    """The report as Markdown tables."""
     lines = [
-        f"{r['episodes']} random layouts (seed {r['seed']}), N = {r['N']}, B = {r['B'] / 1e3:g} kHz, v_b = {r['v_b']} m/s",
+        f"{r['episodes']} test layouts (seed {r['test_seed']}); v_b* from {r['tuning']['episodes']} validation layouts "
+        f"(seed {r['validation_seed']}), N = {r['N']}",
         "",
-        "| baseline | mean PSNR (dB) | coverage (devices) | PSNR of covered (dB) | arrival | mission time (s) |",
+        "| B (kHz) | policy | v_b (m/s) | mean PSNR (dB) ± 95 % CI | coverage | arrival |",
         "|---|---|---|---|---|---|",
     ]
-    for name, s in r["baselines"].items():
-        lines.append(
-            f"| {name} | {s['mean_psnr']:.2f} ± {s['mean_psnr_sem']:.2f} | {s['coverage']:.2f} | "
-            f"{s['psnr_visited']:.2f} | {100 * s['arrived']:.1f} % | {s['mission_time']:.1f} |"
-        )
-    for title, axis, unit, scale in (("bandwidth_sweep", "B", "kHz", 1e-3), ("speed_sweep", "v_b", "m/s", 1.0)):
-        sw = r[title]
-        lines += ["", f"Mean PSNR (dB) / arrival over {axis} ({unit}):", ""]
-        lines.append("| baseline | " + " | ".join(f"{x * scale:g}" for x in sw[axis]) + " |")
-        lines.append("|---" * (len(sw[axis]) + 1) + "|")
-        for name in r["baselines"]:
-            lines.append(f"| {name} | " + " | ".join(f"{s['mean_psnr']:.2f} / {100 * s['arrived']:.0f} %" for s in sw[name]) + " |")
-    o = r["ortools"]
-    lines += ["", f"OR-Tools: {1e3 * o['wall_s_per_layout']:.0f} ms wall per layout "
-                  f"({o['time_limit_ms']} ms guided local search, {o['workers']} workers)"]
+    for row in r["rows"]:
+        for name, s in row["policies"].items():
+            v = "plan" if s["v_b"] is None else f"{s['v_b']:g}"
+            lines.append(f"| {row['B'] / 1e3:g} | {name} | {v} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | "
+                         f"{s['coverage']:.2f} | {100 * s['arrived']:.1f} % |")
+        lines.append(f"| {row['B'] / 1e3:g} | bound (no policy exceeds) | | {row['bound']:.2f} | | |")
+    lines += ["", "| B (kHz) | planner − greedy at v_b* (dB, paired 95 % CI) |", "|---|---|"]
+    for row in r["rows"]:
+        d, ci = row["planner_minus_tuned_greedy"]
+        lines.append(f"| {row['B'] / 1e3:g} | {d:+.2f} ± {ci:.2f} |")
+    lines += ["", f"Wall time: {r['wall_s']:.0f} s"]
     return "\n".join(lines)
 
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--episodes", type=int, default=1000)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--B", type=float, default=20e3, help="bandwidth of the main table (Hz)")
+    ap.add_argument("--episodes", type=int, default=1000, help="test layouts")
+    ap.add_argument("--validation-episodes", type=int, default=500, help="layouts that choose v_b*")
+    ap.add_argument("--B", type=float, nargs="+", default=list(BANDWIDTHS), help="bandwidths (Hz)")
     ap.add_argument("--curves", help="PSNR curves file (default: the shipped DeepJSCC curves)")
-    ap.add_argument("--synthetic", action="store_true", help="use synthetic stand-in curves instead")
-    ap.add_argument("--time-limit-ms", type=int, default=DEFAULT_TIME_LIMIT_MS)
-    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--workers", type=int, default=2, help="processes for OR-Tools and the planner")
     ap.add_argument("--json", help="write the report here")
     args = ap.parse_args(argv)
-    curves = synthetic_curves() if args.synthetic else load_curves(args.curves)
-    r = report(make_params(curves, B=args.B), args.episodes, args.seed, args.time_limit_ms, args.workers)
-    r["curves"] = "synthetic (tests/conftest.py formula)" if args.synthetic else (args.curves or "shipped DeepJSCC")
-    print(f"curves: {r['curves']}")
+    for name in ("episodes", "validation_episodes", "workers"):
+        if getattr(args, name) < 1:
+            ap.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
+    if not all(np.isfinite(b) and b > 0 for b in args.B):
+        ap.error(f"--B must be finite and > 0 Hz, got {args.B}")
+    from semuav_jax.curves import load_curves
+
+    r = report(make_params(load_curves(args.curves), B=args.B[0]), tuple(args.B), args.episodes,
+               args.validation_episodes, args.workers)
     print(markdown(r))
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(r, f, indent=2)
+        atomic_write(args.json, json.dumps(r, indent=2).encode())
 
 
 if __name__ == "__main__":

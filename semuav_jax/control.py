@@ -40,11 +40,12 @@ def speed_command(q, v, target, speed, params: EnvParams):
     return jnp.clip((v_des - v) / params.tau, -params.a_max, params.a_max)
 
 
-def approach_speed(dist, speed, params: EnvParams):
-    """Eq. 7.3: ``speed``, capped ``dist`` metres from the target at sqrt(2 BRAKE a_max dist), the
-    speed from which braking with BRAKE a_max stops there. Braking with only part of a_max leaves
-    the rest for steering: at 25 m/s the turn radius v^2 / a_max = 125 m would circle a 15 m disk."""
-    return jnp.minimum(speed, jnp.sqrt(2.0 * BRAKE * params.a_max * jnp.maximum(dist, 0.0)))
+def approach_speed(dist, speed, params: EnvParams, brake=BRAKE):
+    """Eq. 7.3: ``speed``, capped ``dist`` metres from the target at sqrt(2 b a_max dist), the
+    speed from which braking with b a_max (b = ``brake``) stops there. Braking with only part of
+    a_max leaves the rest for steering: at 25 m/s the turn radius v^2 / a_max = 125 m would circle
+    the 15 m arrival disk."""
+    return jnp.minimum(speed, jnp.sqrt(2.0 * brake * params.a_max * jnp.maximum(dist, 0.0)))
 
 
 def _turn(v, u, speed, params: EnvParams):

@@ -11,7 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from semuav_jax.agents.evaluate import wilson_interval  # noqa: E402
+from semuav_jax.stats import wilson_interval  # noqa: E402
 from semuav_jax.io import atomic_write  # noqa: E402
 
 STYLE = {"DDQN": dict(color="C3", marker="o"), "greedy": dict(color="C0", marker="s"), "tsp": dict(color="C2", marker="^")}

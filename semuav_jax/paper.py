@@ -16,7 +16,8 @@ import numpy as np
 
 import baselines
 from semuav_jax.agents.ddqn import DDQNConfig, make_train
-from semuav_jax.agents.evaluate import greedy_policy, mean_ci
+from semuav_jax.agents.evaluate import greedy_policy
+from semuav_jax.stats import mean_ci
 from semuav_jax.params import EnvParams
 from semuav_jax.rollout import rollout
 from semuav_jax.sharding import shard_episodes

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from semuav_jax import paper
-from semuav_jax.agents.evaluate import wilson_interval
+from semuav_jax.stats import wilson_interval
 from semuav_jax.agents.pretrained import load_pretrained
 from semuav_jax.agents.scenarios import scenario_params
 

@@ -18,6 +18,7 @@ from semuav_jax.actions import action_to_accel
 from semuav_jax.agents.shield import shield
 from semuav_jax.observation import observation
 from semuav_jax.params import EnvParams, validate_params
+from semuav_jax.stats import mean_ci
 
 
 @functools.lru_cache(maxsize=None)
@@ -37,21 +38,6 @@ def evaluate_agent(network, net_params, keys, params: EnvParams, shield_margin: 
     validate_params(params)
     policy = greedy_policy(network, shield_margin)
     return jax.tree.map(np.asarray, baseline_run(policy, keys, params, net_params, state_axes=None))
-
-
-def mean_ci(x, z: float = 1.96):
-    """Mean and half-width of its normal-approximation 95 % confidence interval."""
-    x = np.asarray(x, np.float64)
-    return float(x.mean()), float(z * x.std(ddof=1) / np.sqrt(len(x))) if len(x) > 1 else 0.0
-
-
-def wilson_interval(p, n, z: float = 1.96):
-    """Wilson score 95 % interval (lo, hi) of a proportion p observed over n trials; unlike
-    p ± z sqrt(p(1-p)/n) it stays inside [0, 1] and is not empty at p = 0 or 1."""
-    p = np.asarray(p, np.float64)
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return centre - half, centre + half
 
 
 def baseline_results(keys, params: EnvParams, baselines=("greedy", "tsp"), v_b=None) -> dict:
