@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from baselines.planner import _layouts
+from baselines.evaluate import layouts
 from semuav_jax import channel
 from semuav_jax.params import EnvParams, validate_params
 
@@ -127,6 +127,6 @@ def psnr_bound(keys, params: EnvParams) -> np.ndarray:
     episodes run with ``keys`` (their layouts' images; see the module docstring)."""
     keys = _check_keys(keys)
     validate_params(params)
-    _, img = _layouts(keys, params)
+    _, img = layouts(keys, params)
     rows = np.asarray(params.C, np.float64)[np.asarray(img)]  # (E, N, M + 1)
     return knapsack(rows, _budget(params)) / params.N

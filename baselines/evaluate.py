@@ -32,13 +32,15 @@ def resolve(policy):
 
 @jax.jit
 def layouts(keys, params: EnvParams):
-    """Device positions (E, N, 2) of the episodes run with ``keys`` (the same reset key split as ``episode``)."""
-    return jax.vmap(lambda k: reset_state(jax.random.split(k)[0], params).dev_pos)(keys)
+    """Device positions (E, N, 2) and image indices (E, N) of the episodes run with ``keys`` (the same
+    reset key split as ``episode``)."""
+    s = jax.vmap(lambda k: reset_state(jax.random.split(k)[0], params))(keys)
+    return s.dev_pos, s.dev_img
 
 
 def tsp_ranks(keys, params: EnvParams, time_limit_ms: int = tsp_solver.DEFAULT_TIME_LIMIT_MS, workers: int = 2):
     """Rank (E, N) of each device in the OR-Tools open path q0 -> devices -> q_fin of each episode."""
-    pos = np.asarray(layouts(keys, params))
+    pos = np.asarray(layouts(keys, params)[0])
     q0, q_fin = np.asarray(params.q0), np.asarray(params.q_fin)
     if params.layout == "fixed":
         order = tsp_solver.solve_order(pos[0], q0, q_fin, time_limit_ms)

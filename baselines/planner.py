@@ -2,16 +2,16 @@
 
 Planning (host, NumPy): the planner sees the layout, the images and the curves at t = 0. For each
 cruise speed of ``PLAN_SPEEDS`` it builds a prize-collecting orienteering problem
-(``baselines/orienteering.py``): stop-and-go legs between q0, the devices and q_fin (eq. 7.7),
-and per device the dwell options "receive k symbols" for k in ``TARGETS`` x M, each costing
-the hover time (k - credit) / s0 rounded up to slots (eq. 7.8) and worth C[i, k] - C[i, 0].
-The plan of the speed with the highest prize is kept.
+(``baselines/orienteering.py``): legs cruising between q0, the devices and q_fin (eq. 7.7), and
+per device the visit options of :func:`visit_options` (eq. 7.8): a pass through its range at a
+speed of ``PASS_SPEEDS`` or a hover until a share ``TARGETS`` of M symbols, each worth
+C[i, k] - C[i, 0] for the k symbols it delivers. The plan of the speed with the highest prize is kept.
 
 Flying (JAX, in the env): :func:`planner` is a pure policy like the baselines. It flies to each
-planned device at the plan's speed, brakes to hover over it (eq. 7.3 with ``STOP_BRAKE``) until
-the device has its target symbols, then takes the next one; it skips a device when flying
-there, hovering and then home no longer fits, and flies home (eq. 7.5) when the time left
-requires it. The command delays and the real rates (shared band, edge of range) are the env's.
+planned device at the plan's speed and slows to the visit's speed w at the edge of its range (to
+rest for a hover, eq. 7.3 with ``STOP_BRAKE``); a pass ends at the device, a hover when the
+target symbols have arrived. It skips a device when flying there, hovering and then home no
+longer fits, and flies home (eq. 7.5) when the time left requires it. The command delays and the real rates (shared band, edge of range) are the env's.
 """
 
 from __future__ import annotations
@@ -22,9 +22,9 @@ import numpy as np
 from flax import struct
 
 from baselines import orienteering
+from baselines.evaluate import layouts
 from semuav_jax import channel
 from semuav_jax.control import BRAKE, approach_speed, home_command, speed_command, time_home, time_to_pass
-from semuav_jax.env import reset_state
 from semuav_jax.params import EnvParams
 
 PLAN_SPEEDS = (16.0, 20.0, 25.0)  # m/s, cruise speeds the planner chooses from
@@ -55,13 +55,14 @@ def hover_rate(params: EnvParams) -> float:
     return float(channel.rate(0.0, params.H, params.P_n, params.B, params)) / float(params.beta)
 
 
-def _range_radius(params: EnvParams) -> float:
-    return float(np.sqrt(float(params.D_com) ** 2 - float(params.H) ** 2))
+def range_radius(params: EnvParams):
+    """r_c: the ground radius of the communication range, sqrt(D_com^2 - H^2) (eq. 3.5)."""
+    return jnp.sqrt(params.D_com**2 - params.H**2)
 
 
 def _range_symbols(params: EnvParams, n: int = 400):
     """Ground radii r (midpoints over the range radius) and the symbol rate R(r) / beta of a lone device."""
-    rc = _range_radius(params)
+    rc = float(range_radius(params))
     r = (np.arange(n) + 0.5) * rc / n
     return r, np.asarray(channel.rate(jnp.asarray(r * r), params.H, params.P_n, params.B, params)) / float(params.beta), rc / n
 
@@ -78,9 +79,9 @@ def visit_options(v, params: EnvParams):
     and stays until the target at s0, counting the symbols received on the way in and out.
     Service times are rounded up to SERVICE_STEP_S.
     """
-    a, tau, M = float(params.a_max), float(params.tau), params.M
+    a, M = float(params.a_max), params.M
     r, sym, dr = _range_symbols(params)
-    rc = _range_radius(params)
+    rc = float(range_radius(params))
     b = STOP_BRAKE * a
     w = np.array([x for x in PASS_SPEEDS if x < v] + [v])
     v_out = np.minimum(v, np.sqrt(w[:, None] ** 2 + 2 * a * r))
@@ -112,19 +113,13 @@ def problems(dev_pos, dev_img, params: EnvParams, v):
     return np.maximum(travel, 0.0), np.ascontiguousarray(np.broadcast_to(service, (E, N, len(w)))), np.maximum(prize, 0.0), w, target
 
 
-@jax.jit
-def _layouts(keys, params: EnvParams):
-    s = jax.vmap(lambda k: reset_state(jax.random.split(k)[0], params))(keys)
-    return s.dev_pos, s.dev_img
-
-
 def make_plans(keys, params: EnvParams, speeds=PLAN_SPEEDS, workers: int = 2) -> PlanState:
     """Plans (a PlanState with an episode axis) for the episodes run with ``keys`` (same layouts
     as ``rollout``): for each layout the best plan over ``speeds`` by planned prize."""
     speeds = tuple(float(v) for v in speeds)
     if not speeds or not all(np.isfinite(v) and v > 0 for v in speeds):
         raise ValueError(f"planner speeds must be finite and > 0 m/s, got {speeds}")
-    pos, img = (np.asarray(x) for x in _layouts(jnp.asarray(keys), params))
+    pos, img = (np.asarray(x) for x in layouts(jnp.asarray(keys), params))
     budget = params.K * float(params.tau) + PLAN_SLACK_S
     best = None
     for v in speeds:
@@ -142,7 +137,7 @@ def make_plans(keys, params: EnvParams, speeds=PLAN_SPEEDS, workers: int = 2) ->
     E = len(pos)
     return PlanState(
         order=jnp.asarray(order, jnp.int32), target=jnp.asarray(target, jnp.float32), w=jnp.asarray(w, jnp.float32),
-        v_p=jnp.asarray(np.minimum(v_p, float(params.v_max)), jnp.float32),
+        v_p=jnp.asarray(v_p, jnp.float32),
         s0=jnp.full((E,), hover_rate(params), jnp.float32), idx=jnp.zeros((E,), jnp.int32),
     )
 
@@ -169,7 +164,7 @@ def planner(ps: PlanState, s, params: EnvParams):
     n = jnp.maximum(n, 0)
     p = s.dev_pos[n]
     # slow down to w at the edge of range (to rest over the device when w = 0), eq. 7.3
-    edge = jnp.where(ps.w[n] > 0, jnp.sqrt(params.D_com**2 - params.H**2), 0.0)
+    edge = jnp.where(ps.w[n] > 0, range_radius(params), 0.0)
     dist = jnp.linalg.norm(p - s.q)
     speed = jnp.minimum(ps.v_p, jnp.sqrt(ps.w[n] ** 2 + approach_speed(dist - edge, ps.v_p, params, STOP_BRAKE) ** 2))
     to_dev = speed_command(s.q, s.v, p, speed, params)

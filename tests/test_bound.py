@@ -9,7 +9,7 @@ import pytest
 
 from baselines.bound import knapsack, peak_rate, psnr_bound, symbol_budget
 from baselines.evaluate import evaluate
-from baselines.planner import _layouts
+from baselines.evaluate import layouts
 from semuav_jax import channel
 from semuav_jax.params import make_params
 
@@ -25,7 +25,7 @@ def keys():
 
 
 def _images(keys, params):
-    return np.asarray(_layouts(keys, params)[1])
+    return np.asarray(layouts(keys, params)[1])
 
 
 def test_symbol_budget_by_hand(params):

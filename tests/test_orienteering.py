@@ -56,22 +56,14 @@ def check_plan(plan, travel, service, prize, budget):
     assert value == pytest.approx(sum(prize[d, option[d]] for d in visited), abs=1e-12)
 
 
-@pytest.mark.parametrize("seed", range(8))
-def test_matches_brute_force_optimum(seed):
-    rng = np.random.default_rng(seed)
-    instance = random_instance(rng, n=4, n_opt=3)
+@pytest.mark.parametrize(
+    "seed, n, n_opt, grid", [(s, 4, 3, 0.25) for s in range(8)] + [(100 + s, 6, 2, 1.0) for s in range(2)]
+)
+def test_matches_brute_force_optimum(seed, n, n_opt, grid):
+    instance = random_instance(np.random.default_rng(seed), n=n, n_opt=n_opt, grid=grid)
     plan = solve(*instance)
     check_plan(plan, *instance)
     assert plan[2] == pytest.approx(brute_force(*instance), abs=1e-9)
-
-
-def test_six_devices_two_options_match_brute_force():
-    rng = np.random.default_rng(100)
-    for _ in range(2):
-        instance = random_instance(rng, n=6, n_opt=2, grid=1.0)
-        plan = solve(*instance)
-        check_plan(plan, *instance)
-        assert plan[2] == pytest.approx(brute_force(*instance), abs=1e-9)
 
 
 def test_off_grid_service_times_stay_within_budget_and_near_optimal():

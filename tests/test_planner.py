@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from baselines import orienteering
-from baselines.evaluate import evaluate, run
-from baselines.planner import PLAN_SLACK_S, _layouts, hover_rate, make_plans, planner, problems, visit_options
+from baselines.evaluate import evaluate, layouts, run
+from baselines.planner import PLAN_SLACK_S, hover_rate, make_plans, planner, problems, visit_options
 from semuav_jax.params import make_params
 
 
@@ -42,7 +42,7 @@ def test_plans_fit_the_budget_and_fly_home(params):
     order = np.asarray(plans.order)
     assert np.all((order >= -1) & (order < p.N)) and np.all(np.asarray(plans.idx) == 0)
     # the chosen plan of each layout fits T + PLAN_SLACK_S under the plan's own time model
-    pos, img = (np.asarray(x) for x in _layouts(keys, p))
+    pos, img = (np.asarray(x) for x in layouts(keys, p))
     for e in range(4):
         travel, service, prize, w, target = problems(pos[e:e + 1].astype(float), img[e:e + 1], p, float(plans.v_p[e]))
         o = orienteering.solve(travel[0], service[0], prize[0], 125.0 + PLAN_SLACK_S)

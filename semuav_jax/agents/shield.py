@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from semuav_jax.actions import action_table
+from semuav_jax.actions import action_table, axis_levels
 from semuav_jax.control import airspace_cap, home_command, time_home
 from semuav_jax.params import EnvParams
 
@@ -41,7 +41,7 @@ def home_action(q, v, params: EnvParams):
 def airspace_action(action, q, v, params: EnvParams):
     """``action`` with each axis level lowered (towards braking) just enough that v + a tau stays
     within the airspace cap of eq. 7.2; unchanged without an ``airspace_margin``."""
-    lv = jnp.linspace(-1.0, 1.0, params.levels) * params.a_max
+    lv = axis_levels(params)
     i = jnp.stack([action // params.levels, action % params.levels])
     a = lv[i]
     v_next = v + a * params.tau
