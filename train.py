@@ -17,52 +17,89 @@ from pathlib import Path
 
 from semuav_jax.io import atomic_write
 
-DEFAULTS = {"scenario": "fixed", "reward_mode": "gain", "bandwidth": 20e3, "kappa_c": 10.0}
+SCENARIO = {"scenario": "random", "reward_mode": "gain", "bandwidth": 25e3, "kappa_c": 10.0}
+PRESETS = {
+    "default": {},
+    # the paper's configuration (MODEL.md section 6, PAPER_CLAIMS.md): paper reward with the shield, lr 5e-5,
+    # MLP 128-128-64, the 9 accelerations, the raw observation, 1-step targets, trained at one bandwidth
+    "paper": {"reward_mode": "paper", "actions": "table", "sorted_devices": False, "lr": 5e-5, "hidden": (128, 128, 64),
+              "n_step": 1, "gamma": 0.999, "bandwidth_range": None},
+}
 CONFIG_FILE, METRICS_FILE, CKPT_FILE, MODEL_FILE = "config.json", "metrics.csv", "checkpoint.msgpack", "model.msgpack"
-METRIC_COLUMNS = ("seed", "chunk", "env_steps", "epsilon", "episodes", "loss", "mean_psnr", "return", "arrived", "coverage")
+METRIC_COLUMNS = ("seed", "chunk", "env_steps", "epsilon", "episodes", "loss", "mean_psnr", "return", "arrived",
+                  "coverage", "shield_share")
 
 
 class UsageError(Exception):
     """A bad option or run folder: reported as one line, exit code 2."""
 
 
+def _option_type(default):
+    """argparse type and nargs of a config field from its default value."""
+    if isinstance(default, bool):
+        return {"type": _boolean}
+    if isinstance(default, tuple):
+        return {"type": _none_or(type(default[0])), "nargs": "+"}
+    if default is None or isinstance(default, float):
+        return {"type": _none_or(float)}
+    return {"type": type(default)}
+
+
+def _boolean(text: str) -> bool:
+    if text.lower() not in ("true", "false"):
+        raise ValueError(text)
+    return text.lower() == "true"
+
+
+def _none_or(kind):
+    def parse(text: str):
+        return None if text.lower() == "none" else kind(text)
+    parse.__name__ = kind.__name__
+    return parse
+
+
 def parse_args(argv=None):
+    import dataclasses
+
     from semuav_jax.agents.ddqn import DDQNConfig
 
+    p = argparse.ArgumentParser(description="Train the BS's DDQN from scratch (docs/ddqn.md). Unset options come "
+                                "from --preset; on --resume, from the run folder.")
+    p.add_argument("--preset", choices=sorted(PRESETS), default="default",
+                   help="default: waypoint actions, one agent for every bandwidth; paper: the paper's configuration")
+    p.add_argument("--scenario", choices=("fixed", "random"), default=None,
+                   help=f"fixed paper layout or a new random layout per episode (default: {SCENARIO['scenario']})")
+    p.add_argument("--reward-mode", choices=("paper", "gain"), default=None,
+                   help=f"reward of MODEL.md section 4 (default: {SCENARIO['reward_mode']}; paper preset: paper)")
+    p.add_argument("--bandwidth", type=float, default=None,
+                   help=f"B in Hz when bandwidth_range is none, and for --eval-episodes of such an agent (default: {SCENARIO['bandwidth']:g})")
+    p.add_argument("--kappa-c", type=float, default=None,
+                   help=f"weight of the PSNR gain in the 'gain' reward (default: {SCENARIO['kappa_c']:g})")
     d = DDQNConfig()
-    p = argparse.ArgumentParser(description="Train the semantic-aware UAV DDQN (docs/ddqn.md).")
-    p.add_argument("--scenario", choices=("fixed", "random"), default=DEFAULTS["scenario"],
-                   help="fixed paper layout or a new random layout per episode (default: %(default)s)")
-    p.add_argument("--reward-mode", choices=("paper", "gain"), default=DEFAULTS["reward_mode"],
-                   help="reward of MODEL.md section 4 (default: %(default)s)")
-    p.add_argument("--bandwidth", type=float, default=DEFAULTS["bandwidth"], help="device uplink band B in Hz")
-    p.add_argument("--kappa-c", type=float, default=DEFAULTS["kappa_c"],
-                   help="weight of the PSNR gain in the 'gain' reward (MODEL.md section 4; default: %(default)s)")
-    p.add_argument("--total-steps", type=int, default=d.total_steps, help="environment steps, summed over envs")
-    p.add_argument("--seeds", type=int, default=1, help="independent agents trained in one program")
+    for f in dataclasses.fields(DDQNConfig):
+        default = getattr(d, f.name)
+        shown = "none" if default is None else " ".join(f"{x:g}" if isinstance(x, float) else str(x)
+                                                        for x in (default if isinstance(default, tuple) else (default,)))
+        p.add_argument("--" + f.name.replace("_", "-"), default=None, help=f"{f.metadata['help']} (default: {shown})",
+                       **_option_type(default))
+    p.add_argument("--seeds", type=int, default=3, help="independent agents trained in one program (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="base random seed")
-    p.add_argument("--num-envs", type=int, default=d.num_envs)
-    p.add_argument("--batch-size", type=int, default=d.batch_size)
-    p.add_argument("--gamma", type=float, default=d.gamma)
-    p.add_argument("--lr", type=float, default=d.lr)
-    p.add_argument("--steps-per-chunk", type=int, default=d.steps_per_chunk, help="vmapped env steps per chunk")
-    p.add_argument("--learning-starts", type=int, default=d.learning_starts, help="random transitions before learning")
-    p.add_argument("--shield-margin", type=float, default=d.shield_margin,
-                   help="seconds of slack of the BS's return-home shield (docs/ddqn.md; default: %(default)s)")
-    p.add_argument("--no-shield", action="store_true", help="train and evaluate without the return-home shield")
-    p.add_argument("--segments", type=int, default=10, help="host-level segments (progress + checkpoint each)")
+    p.add_argument("--segments", type=int, default=20, help="host-level segments (progress + checkpoint each)")
     p.add_argument("--max-segments", type=int, default=None,
                    help="stop after this many segments in this session (continue later with --resume)")
-    p.add_argument("--eval-episodes", type=int, default=512, help="greedy-policy evaluation episodes (0: skip)")
+    p.add_argument("--eval-episodes", type=int, default=1000,
+                   help="test layouts for the comparison with the tuned baselines and the planner (0: skip)")
+    p.add_argument("--workers", type=int, default=2, help="processes for OR-Tools and the planner in the evaluation")
     p.add_argument("--curves", type=str, default=None, help="PSNR curves .npz, or 'synthetic' for the stand-in test curves (default: the shipped DeepJSCC curves)")
-    p.add_argument("--out", type=str, default=None, help="run folder (default: runs/ddqn_<scenario>_<reward-mode>)")
+    p.add_argument("--out", type=str, default=None, help="run folder (default: runs/ddqn_<preset>)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
     g.add_argument("--overwrite", action="store_true", help="delete the contents of an existing --out first")
     args = p.parse_args(argv)
+    args.command = " ".join(["python train.py", *(sys.argv[1:] if argv is None else argv)])
     if args.out is None:
-        args.out = f"runs/ddqn_{args.scenario}_{args.reward_mode}"
-    for name in ("seeds", "segments", "max_segments"):
+        args.out = f"runs/ddqn_{args.preset}"
+    for name in ("seeds", "segments", "max_segments", "workers"):
         if getattr(args, name) is not None and getattr(args, name) < 1:
             raise UsageError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
     if args.eval_episodes < 0:
@@ -72,15 +109,20 @@ def parse_args(argv=None):
 
 def run_config(args) -> dict:
     """The JSON-able description of a run (written to config.json; read back on --resume)."""
+    import dataclasses
+
     from semuav_jax.agents.ddqn import DDQNConfig
 
-    cfg = DDQNConfig(total_steps=args.total_steps, num_envs=args.num_envs, batch_size=args.batch_size,
-                     gamma=args.gamma, lr=args.lr, steps_per_chunk=args.steps_per_chunk,
-                     learning_starts=args.learning_starts,
-                     shield_margin=None if args.no_shield else args.shield_margin)
-    return {"scenario": args.scenario, "reward_mode": args.reward_mode, "bandwidth": args.bandwidth, "kappa_c": args.kappa_c,
-            "seeds": args.seeds, "seed": args.seed, "segments": args.segments, "curves": args.curves,
-            "ddqn": cfg.to_dict()}
+    preset = PRESETS[args.preset]
+    names = {f.name for f in dataclasses.fields(DDQNConfig)}
+    given = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
+    for k in ("hidden", "bandwidth_range"):
+        if k in given:
+            given[k] = None if given[k] == [None] else tuple(given[k])
+    cfg = DDQNConfig(**{**{k: v for k, v in preset.items() if k in names}, **given})
+    scenario = {k: getattr(args, k) if getattr(args, k) is not None else preset.get(k, v) for k, v in SCENARIO.items()}
+    return {"preset": args.preset, **scenario, "seeds": args.seeds, "seed": args.seed, "segments": args.segments,
+            "curves": args.curves, "command": args.command, "ddqn": cfg.to_dict()}
 
 
 def load_run_config(args) -> dict:
@@ -150,10 +192,11 @@ def main(argv=None) -> int:
     from flax import serialization
     from tqdm import tqdm
 
+    from baselines.report import BANDWIDTHS
     from semuav_jax.agents.ddqn import DDQNConfig, make_train
-    from semuav_jax.agents.evaluate import baseline_results, compare
     from semuav_jax.agents.scenarios import scenario_params
     from semuav_jax.curves import load_curves, synthetic_curves
+    from semuav_jax.provenance import provenance
 
     out = Path(args.out)
     try:
@@ -215,19 +258,16 @@ def main(argv=None) -> int:
           f"in {wall:.0f} s (this session)")
 
     if args.eval_episodes:
-        eval_keys = jax.random.split(jax.random.PRNGKey(10_000 + cfg["seed"]), args.eval_episodes)
-        report = {"eval_episodes": args.eval_episodes, "train_wall_s": wall, "seeds": []}
-        reference = baseline_results(eval_keys, params)
-        for s in range(cfg["seeds"]):
-            net = jax.tree.map(lambda x: x[s], state.params)
-            res = compare(trainer.network, net, eval_keys, params, reference, config.shield_margin)
-            report["seeds"].append(res)
-            line = "  ".join(f"{k} {v['mean_psnr'][0]:.2f}±{v['mean_psnr'][1]:.2f}" for k, v in res.items()
-                             if isinstance(v, dict))
-            margins = "  ".join(f"{k} {v[0]:+.2f}±{v[1]:.2f}" for k, v in res.items() if k.startswith("margin"))
-            print(f"seed {s}: mean PSNR (dB, 95% CI)  {line}  {margins}")
+        from semuav_jax.experiments.learned import compare, markdown
+
+        bandwidths = BANDWIDTHS if config.bandwidth_range is not None else (cfg["bandwidth"],)
+        report = compare(trainer.network, state.params, config, params, bandwidths, args.eval_episodes,
+                         workers=args.workers, log=lambda m: tqdm.write(m))
+        report.update(train_wall_s=wall, **provenance(params))
         atomic_write(out / "eval.json", json.dumps(report, indent=2).encode())
-        ref = {k: v["mean_psnr"][0] for k, v in report["seeds"][0].items() if isinstance(v, dict) and k != "ddqn"}
+        atomic_write(out / "eval.md", (markdown(report) + "\n").encode())
+        print(markdown(report))
+        ref = {k: v["mean_psnr"] for k, v in report["rows"][-1]["references"].items() if k != "planner"}
         plot_curves(rows, out / "learning_curve.png", ref)
     print(f"run folder: {out}")
     return 0

@@ -45,10 +45,33 @@ def tune(params, bandwidths=BANDWIDTHS, episodes: int = 500, grid=SPEED_GRID, wo
     return out
 
 
-def _summary(psnr, coverage, arrived) -> dict:
-    mean, ci = mean_ci(psnr)
+def flights(params, keys, tuned: dict, bandwidths=BANDWIDTHS, workers: int = 2) -> list[dict]:
+    """Per-episode metrics (dicts of (E,) arrays) on ``keys`` at each bandwidth: greedy and TSP at
+    the paper's speed and at their tuned v_b* (``tuned`` from :func:`tune`), and the planner."""
+    rank = tsp_ranks(keys, params, workers=workers)
+    speeds = sorted({DEFAULT_V_B, *[v for n in TUNED for v in tuned[n]["v_star"]]})
+    swept = {n: sweep(n, keys, params, v_b=speeds, B=bandwidths, rank=rank) for n in TUNED}
+    out = []
+    for j, b in enumerate(bandwidths):
+        pb = params.replace(B=b)
+        row = {}
+        for n in TUNED:
+            for label, v in ((f"{n} {DEFAULT_V_B:g}", DEFAULT_V_B), (f"{n} v_b*", tuned[n]["v_star"][j])):
+                row[label] = {"v_b": v, **{k: x[j, speeds.index(v)] for k, x in swept[n].items()}}
+        t1 = time.perf_counter()
+        plan = make_plans(keys, pb, workers=workers)
+        row["planner"] = {"v_b": None, **{k: np.asarray(v) for k, v in run(planner, keys, pb, plan).items()},
+                          "wall_s": time.perf_counter() - t1}
+        out.append(row)
+    return out
+
+
+def summary(m: dict) -> dict:
+    """Mean PSNR with its t interval, coverage and arrival with its Wilson interval of per-episode metrics."""
+    mean, ci = mean_ci(m["mean_psnr"])
+    arrived = np.asarray(m["arrived"], np.float64)
     lo, hi = wilson_interval(arrived.mean(), arrived.size)
-    return {"mean_psnr": mean, "ci95": ci, "coverage": float(coverage.mean()), "arrived": float(arrived.mean()),
+    return {"mean_psnr": mean, "ci95": ci, "coverage": float(np.mean(m["coverage"])), "arrived": float(arrived.mean()),
             "arrived_wilson95": [float(lo), float(hi)]}
 
 
@@ -60,32 +83,17 @@ def report(params, bandwidths=BANDWIDTHS, episodes: int = 1000, validation_episo
     log(f"v_b* chosen on {validation_episodes} validation layouts ({time.perf_counter() - t0:.0f} s): "
         + ", ".join(f"{n} {tuned[n]['v_star']}" for n in TUNED))
     keys = episode_keys(TEST_SEED, episodes)
-    rank = tsp_ranks(keys, params, workers=workers)
-    speeds = sorted({DEFAULT_V_B, *[v for n in TUNED for v in tuned[n]["v_star"]]})
-    flights = {n: sweep(n, keys, params, v_b=speeds, B=bandwidths, rank=rank) for n in TUNED}
     rows = []
-    for j, b in enumerate(bandwidths):
-        pb = params.replace(B=b)
-        t1 = time.perf_counter()
-        plan = make_plans(keys, pb, workers=workers)
-        pm = {k: np.asarray(v) for k, v in run(planner, keys, pb, plan).items()}
-        plan_s = time.perf_counter() - t1
-        row = {"B": float(b), "policies": {}}
-        for n in TUNED:
-            for label, v in ((f"{n} {DEFAULT_V_B:g}", DEFAULT_V_B), (f"{n} v_b*", tuned[n]["v_star"][j])):
-                i = speeds.index(v)
-                m = {k: x[j, i] for k, x in flights[n].items()}
-                row["policies"][label] = {"v_b": v, **_summary(m["mean_psnr"], m["coverage"], m["arrived"])}
-        row["policies"]["planner"] = {"v_b": None, **_summary(pm["mean_psnr"], pm["coverage"], pm["arrived"]),
-                                      "wall_s": plan_s}
-        g = flights["greedy"]["mean_psnr"][j, speeds.index(tuned["greedy"]["v_star"][j])]
-        row["planner_minus_tuned_greedy"] = mean_ci(pm["mean_psnr"] - g)
-        bound = psnr_bound(keys, pb)
-        row["bound"] = float(bound.mean())
+    for b, fl in zip(bandwidths, flights(params, keys, tuned, bandwidths, workers)):
+        row = {"B": float(b), "policies": {k: {"v_b": m["v_b"], **summary(m)} for k, m in fl.items()}}
+        row["policies"]["planner"]["wall_s"] = fl["planner"]["wall_s"]
+        row["planner_minus_tuned_greedy"] = mean_ci(fl["planner"]["mean_psnr"] - fl["greedy v_b*"]["mean_psnr"])
+        row["bound"] = float(psnr_bound(keys, params.replace(B=b)).mean())
         rows.append(row)
         d, ci = row["planner_minus_tuned_greedy"]
         log(f"B = {b / 1e3:g} kHz: planner {row['policies']['planner']['mean_psnr']:.2f} dB "
-            f"({d:+.2f} ± {ci:.2f} vs greedy at v_b*), bound {row['bound']:.2f} dB, planner {plan_s:.0f} s")
+            f"({d:+.2f} ± {ci:.2f} vs greedy at v_b*), bound {row['bound']:.2f} dB, "
+            f"planner {fl['planner']['wall_s']:.0f} s")
     return {"episodes": episodes, "test_seed": TEST_SEED, "validation_seed": VALIDATION_SEED, "N": params.N,
             "arrival_min": ARRIVAL_MIN, "tuning": tuned, "rows": rows, "wall_s": time.perf_counter() - t0}
 

@@ -1,9 +1,12 @@
-"""The DDQN's discrete action table of MODEL.md section 6 (eq. 6.1 in docs/model.md)."""
+"""What the BS can command (MODEL.md section 6, docs/model.md eqs. 6.1-6.2): the paper's table of
+accelerations, and waypoint actions that the core controller (``semuav_jax.control``) turns into
+accelerations."""
 
 from __future__ import annotations
 
 import jax.numpy as jnp
 
+from semuav_jax.control import approach_speed, home_command, speed_command
 from semuav_jax.params import EnvParams
 
 
@@ -25,3 +28,40 @@ def action_table(params: EnvParams):
 def action_to_accel(action, params: EnvParams):
     """The acceleration of a discrete action index (eq. 6.1)."""
     return action_table(params)[action]
+
+
+# ---------------------------------------------------------------- waypoint actions (eq. 6.2)
+
+TARGETS = 3  # the nearest unfinished devices a waypoint action can aim at
+SPEEDS = (0.0, 6.0, 12.0, 18.0, 25.0)  # m/s; 0 = fly over the device and hover there (eq. 7.3)
+HOVER_BRAKE = 0.5  # share of a_max a hover approach brakes with
+HOME = TARGETS * len(SPEEDS)  # the last waypoint action: fly home at v_max and brake into the disk
+NUM_WAYPOINT_ACTIONS = HOME + 1
+
+
+def device_order(state, params: EnvParams):
+    """(N,) device indices, unfinished ones (m_n < M) first, each group nearest first: the order in
+    which waypoint actions address devices (eq. 6.2)."""
+    d2 = jnp.sum((state.dev_pos - state.q) ** 2, axis=-1)
+    return jnp.argsort(jnp.where(state.m < params.M, d2, d2 + 1e12))
+
+
+def waypoint_accel(action, state, params: EnvParams):
+    """Eq. 6.2: the acceleration of waypoint action ``action`` (0 .. HOME), by the controller of eq. 7.1.
+
+    Action j * len(SPEEDS) + i flies towards the j-th device of :func:`device_order` at SPEEDS[i],
+    or, for SPEEDS[i] = 0, at the approach speed of eq. 7.3 (v_max far away, braking with
+    HOVER_BRAKE a_max to a stop over the device). HOME, and any action whose device is finished,
+    is the home command at v_max.
+    """
+    order = device_order(state, params)
+    slot = jnp.minimum(action // len(SPEEDS), params.N - 1)
+    n = order[slot]
+    target = state.dev_pos[n]
+    dist = jnp.linalg.norm(target - state.q)
+    s = jnp.asarray(SPEEDS)[action % len(SPEEDS)]
+    speed = jnp.where(s > 0, s, approach_speed(dist, params.v_max, params, brake=HOVER_BRAKE))
+    to_device = speed_command(state.q, state.v, target, speed, params)
+    home = home_command(state.q, state.v, params.v_max, params)
+    go = (action < HOME) & (action // len(SPEEDS) < params.N) & (state.m[n] < params.M)
+    return jnp.where(go, to_device, home)

@@ -16,7 +16,7 @@ import numpy as np
 
 import baselines
 from semuav_jax.agents.ddqn import DDQNConfig, make_train
-from semuav_jax.agents.evaluate import greedy_policy
+from semuav_jax.agents.evaluate import agent_state, greedy_policy
 from semuav_jax.stats import mean_ci
 from semuav_jax.params import EnvParams
 from semuav_jax.rollout import rollout
@@ -39,7 +39,7 @@ class BandwidthAgents:
     net_params: object
     bandwidths: tuple
     curves: dict  # per-chunk training metrics, (len(bandwidths), chunks) arrays
-    shield_margin: float | None  # of the return-home shield that filters their actions (None: off)
+    config: DDQNConfig  # how they were trained: action mode, input, shield
 
 
 def train_over_bandwidth(
@@ -71,17 +71,17 @@ def train_over_bandwidth(
     curves = {k: np.concatenate([h[k] for h in history], axis=1)[:n_agents] for k in history[0]}
     net_params = jax.tree.map(lambda x: x[:n_agents], state.params)
     network = make_train(config, params).network
-    return BandwidthAgents(network, net_params, tuple(bandwidths), curves, config.shield_margin)
+    return BandwidthAgents(network, net_params, tuple(bandwidths), curves, config)
 
 
 def ddqn_sweep(agents: BandwidthAgents, keys, params: EnvParams) -> dict:
     """Metrics (len(bandwidths), E) of each agent's greedy policy at its own bandwidth."""
-    policy = greedy_policy(agents.network, agents.shield_margin)
+    policy = greedy_policy(agents.network, agents.config)
     E = len(keys)
     skeys = shard_episodes(keys)
 
     def at(net, b):
-        return rollout(policy, skeys, params.replace(B=b), policy_state=net, state_axes=None)[0]
+        return rollout(policy, skeys, params.replace(B=b), policy_state=agent_state(net), state_axes=None)[0]
 
     out = jax.jit(jax.vmap(at))(agents.net_params, jnp.asarray(agents.bandwidths, jnp.float32))
     return {k: np.asarray(v)[:, :E] for k, v in out.items()}
@@ -101,7 +101,8 @@ def trajectories(agents: BandwidthAgents, agent_index: int, params: EnvParams, k
     """Positions (slots + 1, 2) and final metrics of DDQN, greedy and TSP on the episode of ``key``."""
     keys = key[None]
     net = jax.tree.map(lambda x: x[agent_index], agents.net_params)
-    runs = {"DDQN": rollout(greedy_policy(agents.network, agents.shield_margin), keys, params, policy_state=net, state_axes=None, trace=True)}
+    runs = {"DDQN": rollout(greedy_policy(agents.network, agents.config), keys, params, policy_state=agent_state(net),
+                            state_axes=None, trace=True)}
     for name in ("greedy", "tsp"):
         rank = baselines.tsp_ranks(keys, params) if name == "tsp" else np.arange(params.N)[None]
         state = jax.vmap(baselines.init_state, (None, 0))(jnp.float32(baselines.DEFAULT_V_B), jnp.asarray(rank))

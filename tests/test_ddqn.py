@@ -11,6 +11,7 @@ from semuav_jax.agents.ddqn import (
     double_q_target,
     epsilon,
     make_train,
+    n_step_transition,
     replay_add,
     replay_init,
     replay_sample,
@@ -35,7 +36,7 @@ def test_double_q_target_by_hand():
 
 def _batch(start, n, obs_dim=3):
     v = jnp.arange(start, start + n, dtype=jnp.float32)
-    return Transition(jnp.repeat(v[:, None], obs_dim, 1), v.astype(jnp.int32), v, v[:, None] + jnp.zeros(obs_dim), v * 0)
+    return Transition(jnp.repeat(v[:, None], obs_dim, 1), v.astype(jnp.int32), v, v[:, None] + jnp.zeros(obs_dim), v * 0, v * 0 + 0.9)
 
 
 def test_replay_wraps_around():
@@ -120,21 +121,45 @@ def test_short_training_improves_return(curves):
     state, _ = jax.jit(tr.train)(jax.random.PRNGKey(0))
     untrained = jax.jit(tr.init)(jax.random.PRNGKey(0)).params
     keys = jax.random.split(jax.random.PRNGKey(1), 16)
-    before = evaluate_agent(tr.network, untrained, keys, params)["return"].mean()
-    after = evaluate_agent(tr.network, state.params, keys, params)["return"].mean()
+    before = evaluate_agent(tr.network, untrained, cfg, keys, params)["return"].mean()
+    after = evaluate_agent(tr.network, state.params, cfg, keys, params)["return"].mean()
     assert after > before + 300.0, (before, after)
 
 
-def test_agent_features_ignore_device_order(curves):
-    """Permuting the devices of a state leaves the Q-network's input unchanged (random layouts)."""
-    from semuav_jax.agents.ddqn import agent_features
+def _permuted(s):
+    perm = jnp.array([3, 1, 4, 0, 9, 2, 8, 5, 7, 6])
+    return s.replace(dev_pos=s.dev_pos[perm], dev_img=s.dev_img[perm], m=s.m[perm], phi=s.phi[perm], x=s.x[perm])
+
+
+def test_agent_inputs_ignore_device_order(curves):
+    """Permuting the devices of a state leaves the Q-network's input unchanged (random layouts), for
+    both action modes, mid-episode (some devices partly or fully received)."""
+    from semuav_jax.agents.ddqn import agent_input
     from semuav_jax.env import reset_state
-    from semuav_jax.observation import observation
 
     params = scenario_params("random", curves)
     s = reset_state(jax.random.PRNGKey(3), params)
-    perm = jnp.array([3, 1, 4, 0, 9, 2, 8, 5, 7, 6])
-    s2 = s.replace(dev_pos=s.dev_pos[perm], dev_img=s.dev_img[perm], m=s.m[perm], phi=s.phi[perm], x=s.x[perm])
-    f1, f2 = agent_features(observation(s, params)), agent_features(observation(s2, params))
-    np.testing.assert_allclose(f1, f2)
-    assert f1.shape == (9 + 2 + 10 * 7,)
+    m = jnp.array([0.0, 40.0, params.M, 0.0, 3.0, 0.0, params.M, 0.0, 0.0, 100.0])
+    s = s.replace(m=m, phi=params.C[s.dev_img, jnp.floor(m).astype(jnp.int32)], q=jnp.array([420.0, 310.0]),
+                  v=jnp.array([6.0, -3.0]), t=jnp.int32(80))
+    for actions, size in (("table", 9 + 2 + 10 * 7), ("waypoint", 14 + 10 * 9)):
+        cfg = DDQNConfig(**SMALL, actions=actions)
+        f1, f2 = agent_input(s, params, cfg), agent_input(_permuted(s), params, cfg)
+        np.testing.assert_allclose(f1, f2)
+        assert f1.shape == (size,) and np.all(np.isfinite(f1))
+
+
+def test_n_step_transition_by_hand():
+    """Window of 3 steps for two envs; env 1 ends its episode at the second step."""
+    g = 0.9
+    obs = jnp.arange(3 * 2, dtype=jnp.float32).reshape(3, 2, 1)
+    w = Transition(obs=obs, action=jnp.array([[1, 2], [3, 4], [5, 6]]),
+                   reward=jnp.array([[1.0, 10.0], [2.0, 20.0], [4.0, 40.0]]), next_obs=obs + 100.0,
+                   done=jnp.array([[0.0, 0.0], [0.0, 1.0], [0.0, 0.0]]), discount=jnp.full((3, 2), g))
+    t = n_step_transition(w, g)
+    # env 0: 1 + 0.9 * 2 + 0.81 * 4, bootstrap from the third next_obs with 0.9^3
+    np.testing.assert_allclose(t.reward, [1 + g * 2 + g * g * 4, 10 + g * 20], rtol=1e-6)
+    np.testing.assert_allclose(t.discount, [g ** 3, g ** 2], rtol=1e-6)
+    np.testing.assert_array_equal(t.done, [0.0, 1.0])
+    np.testing.assert_array_equal(t.next_obs[:, 0], [104.0, 103.0])  # env 1 stops at its terminal step
+    np.testing.assert_array_equal(t.action, [1, 2])

@@ -9,7 +9,8 @@ import pytest
 
 from semuav_jax.actions import action_to_accel
 from semuav_jax.agents.ddqn import DDQNConfig, make_train
-from semuav_jax.agents.shield import airspace_action, home_action, home_speed, shield, shield_time_home as time_home
+from semuav_jax.agents.shield import airspace_action, home_action, home_speed, shield
+from semuav_jax.control import time_home
 from semuav_jax.env import reset_state
 from semuav_jax.rollout import episode
 from test_control import time_home_by_hand
@@ -19,7 +20,7 @@ def test_time_home_by_hand(params):
     # home speed 25 - sqrt(2) * 5 * 0.5 / 2 = 23.232 m/s (half a level step of error per axis)
     v_home = 25.0 - np.sqrt(2.0) * 1.25
     assert float(home_speed(params)) == pytest.approx(v_home, rel=1e-6)
-    th = lambda q, v: float(time_home(jnp.array(q), jnp.array(v), params))
+    th = lambda q, v: float(time_home(jnp.array(q), jnp.array(v), params.v_max, params, cruise=home_speed(params)))
     # at rest at the BS (500, 300), 500 m from q_fin = (1000, 300): turn 4.646 s, cruise
     # (500 - 215.89) / 23.232 = 12.229 s, brake 2 (sqrt(215.89) - sqrt(15)) / sqrt(2.5) = 13.687 s
     assert th([500.0, 300.0], [0.0, 0.0]) == pytest.approx(30.562, abs=1e-3)

@@ -27,40 +27,56 @@ import jax.numpy as jnp
 import optax
 from flax import struct
 
-from semuav_jax.actions import action_to_accel
-from semuav_jax.agents.shield import shield
+from semuav_jax.actions import NUM_WAYPOINT_ACTIONS, action_to_accel, waypoint_accel
+from semuav_jax.agents.features import table_features, waypoint_features
+from semuav_jax.agents.shield import shield, waypoint_shield
 from semuav_jax.env import reset_state, transition
 from semuav_jax.metrics import episode_metrics
-from semuav_jax.observation import DEVICE_FEATURES, GLOBAL_FEATURES, obs_size, observation
+from semuav_jax.observation import observation
 from semuav_jax.params import EnvParams
+
+
+ACTION_MODES = ("waypoint", "table")
+
+
+def _f(default, help: str):
+    """A config field with its command-line help (``train.py`` derives its options from these)."""
+    return dataclasses.field(default=default, metadata={"help": help})
 
 
 @dataclasses.dataclass(frozen=True)
 class DDQNConfig:
     """Hyperparameters (static). ``total_steps`` counts environment steps summed over envs."""
 
-    num_envs: int = 32
-    total_steps: int = 3_000_000
-    steps_per_chunk: int = 250
-    updates_per_step: int = 1
-    batch_size: int = 128
-    buffer_size: int = 50_000
-    learning_starts: int = 10_000
-    lr: float = 2.5e-4
-    gamma: float = 0.999
-    eps_start: float = 1.0
-    eps_end: float = 0.02
-    eps_decay_frac: float = 0.5
-    target_period: int = 4
-    reward_scale: float = 0.01
-    max_grad_norm: float = 10.0
-    hidden: tuple = (128, 128, 64)
-    sorted_devices: bool = True
-    shield_margin: float | None = 2.0
+    num_envs: int = _f(32, "parallel environments per agent")
+    total_steps: int = _f(3_000_000, "environment steps per agent, summed over its envs")
+    steps_per_chunk: int = _f(250, "vmapped env steps per compiled chunk (target sync and metrics per chunk)")
+    updates_per_step: int = _f(1, "gradient updates after each vmapped env step")
+    batch_size: int = _f(128, "replay minibatch")
+    buffer_size: int = _f(50_000, "replay memory, transitions")
+    learning_starts: int = _f(10_000, "random transitions stored before learning")
+    lr: float = _f(2.5e-4, "Adam learning rate")
+    gamma: float = _f(0.99, "discount per slot")
+    eps_start: float = _f(1.0, "initial exploration rate")
+    eps_end: float = _f(0.02, "final exploration rate")
+    eps_decay_frac: float = _f(0.5, "share of training over which epsilon decays linearly")
+    target_period: int = _f(4, "chunks between target-network syncs")
+    n_step: int = _f(5, "steps summed in each return before bootstrapping")
+    reward_scale: float = _f(0.01, "multiplies every reward before learning")
+    max_grad_norm: float = _f(10.0, "global gradient-norm clip")
+    hidden: tuple = _f((128, 128, 64), "hidden layer widths of the Q-network MLP")
+    sorted_devices: bool = _f(True, "table actions: sort device blocks nearest first and add tanh offsets")
+    shield_margin: float | None = _f(2.0, "seconds of slack of the BS's return-home shield; none: no shield")
+    actions: str = _f("waypoint", "waypoint (eq. 6.2: device, speed or hover, home) or table (the paper's 9 accelerations)")
+    bandwidth_range: tuple | None = _f((4e3, 50e3), "(lo, hi) Hz: env e trains at a bandwidth geometric in the range "
+                                       "(one agent for every B); none: the scenario's B")
 
     def __post_init__(self):
+        for name in ("hidden", "bandwidth_range"):  # lists (from JSON or the command line) become tuples
+            if isinstance(getattr(self, name), list):
+                object.__setattr__(self, name, tuple(getattr(self, name)))
         ints = ("num_envs", "total_steps", "steps_per_chunk", "updates_per_step", "batch_size",
-                "buffer_size", "target_period")
+                "buffer_size", "target_period", "n_step")
         for name in ints:
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)}")
@@ -78,6 +94,12 @@ class DDQNConfig:
             raise ValueError(f"gamma must be in [0, 1], got {self.gamma}")
         if self.shield_margin is not None and not self.shield_margin >= 0:
             raise ValueError(f"shield_margin must be >= 0 seconds or None (no shield), got {self.shield_margin}")
+        if self.actions not in ACTION_MODES:
+            raise ValueError(f"actions must be one of {ACTION_MODES}, got {self.actions!r}")
+        if self.bandwidth_range is not None:
+            lo, hi = self.bandwidth_range
+            if not 0 < lo <= hi < float("inf"):
+                raise ValueError(f"bandwidth_range must be (lo, hi) with 0 < lo <= hi, finite, got {self.bandwidth_range}")
         if self.lr <= 0 or self.reward_scale <= 0:
             raise ValueError("lr and reward_scale must be > 0")
         if self.num_chunks < 1:
@@ -96,47 +118,55 @@ class DDQNConfig:
         return self.total_steps // (self.num_envs * self.steps_per_chunk)
 
     def to_dict(self) -> dict:
-        return {**dataclasses.asdict(self), "hidden": list(self.hidden)}
+        return dataclasses.asdict(self)
 
     @classmethod
     def from_dict(cls, d: dict) -> "DDQNConfig":
-        return cls(**{**d, "hidden": tuple(d["hidden"])})
+        return cls(**d)
 
 
-NEAR_GAIN = 20.0  # tanh(20 x): resolves tens of metres in area-normalized offsets
+def agent_input(state, params: EnvParams, config: DDQNConfig):
+    """The Q-network's input for one ``EnvState`` (``agents/features.py``)."""
+    if config.actions == "waypoint":
+        return waypoint_features(state, params)
+    obs = observation(state, params)
+    return table_features(obs) if config.sorted_devices else obs
 
 
-def agent_features(obs):
-    """The Q-network's input: the observation (MODEL.md section 5) made permutation-invariant.
+def input_size(params: EnvParams, config: DDQNConfig) -> int:
+    state = jax.eval_shape(reset_state, jax.random.key(0), params)
+    return int(jax.eval_shape(lambda s: agent_input(s, params, config), state).shape[0])
 
-    Device blocks are sorted nearest first (the device index carries no meaning on random
-    layouts), and every relative offset (devices and goal) gets a companion ``tanh(20 x)`` that
-    resolves the ~32 m communication radius, which the area normalization squeezes to ~0.03.
-    A fixed, parameter-free transform; works on one observation or a batch.
-    """
-    glob, dev = obs[..., :GLOBAL_FEATURES], obs[..., GLOBAL_FEATURES:]
-    dev = dev.reshape(dev.shape[:-1] + (-1, DEVICE_FEATURES))
-    order = jnp.argsort(jnp.sum(dev[..., :2] ** 2, axis=-1), axis=-1)
-    dev = jnp.take_along_axis(dev, order[..., None], axis=-2)
-    dev = jnp.concatenate([dev, jnp.tanh(NEAR_GAIN * dev[..., :2])], axis=-1)
-    near_goal = jnp.tanh(NEAR_GAIN * glob[..., GLOBAL_FEATURES - 2:])
-    return jnp.concatenate([glob, near_goal, dev.reshape(dev.shape[:-2] + (-1,))], axis=-1)
+
+def num_actions(params: EnvParams, config: DDQNConfig) -> int:
+    return NUM_WAYPOINT_ACTIONS if config.actions == "waypoint" else params.num_actions
+
+
+def command(action, state, params: EnvParams, config: DDQNConfig):
+    """What the BS sends for the agent's ``action``: (the action after the shield, its acceleration)."""
+    if config.actions == "waypoint":
+        sent = waypoint_shield(action, state, params, config.shield_margin)
+        return sent, waypoint_accel(sent, state, params)
+    sent = shield(action, state, params, config.shield_margin)
+    return sent, action_to_accel(sent, params)
+
+
+def train_bandwidths(config: DDQNConfig, params: EnvParams):
+    """(num_envs,) bandwidth of each training env: geometric over ``bandwidth_range``, or params.B."""
+    if config.bandwidth_range is None:
+        return jnp.full((config.num_envs,), params.B, jnp.float32)
+    lo, hi = config.bandwidth_range
+    return jnp.geomspace(lo, hi, config.num_envs).astype(jnp.float32)
 
 
 class QNetwork(nn.Module):
-    """MLP 128-128-64 with ReLU and one linear output per action (the paper's Q-network).
-
-    With ``sorted_devices`` the observation first goes through :func:`agent_features`.
-    """
+    """MLP with ReLU and one linear output per action (the paper's: 128-128-64)."""
 
     num_actions: int
     hidden: tuple = (128, 128, 64)
-    sorted_devices: bool = True
 
     @nn.compact
     def __call__(self, x):
-        if self.sorted_devices:
-            x = agent_features(x)
         for h in self.hidden:
             x = nn.relu(nn.Dense(h)(x))
         return nn.Dense(self.num_actions)(x)
@@ -146,11 +176,14 @@ class QNetwork(nn.Module):
 
 
 class Transition(NamedTuple):
+    """One stored (n-step) transition: y = reward + discount (1 - done) max-Q(next_obs)."""
+
     obs: jax.Array
     action: jax.Array
     reward: jax.Array
     next_obs: jax.Array
     done: jax.Array
+    discount: jax.Array
 
 
 @struct.dataclass
@@ -173,6 +206,7 @@ def replay_init(capacity: int, obs_dim: int) -> Replay:
         reward=jnp.zeros((capacity,), jnp.float32),
         next_obs=jnp.zeros((capacity, obs_dim), jnp.float32),
         done=jnp.zeros((capacity,), jnp.float32),
+        discount=jnp.zeros((capacity,), jnp.float32),
     )
     return Replay(data=data, pos=jnp.zeros((), jnp.int32), size=jnp.zeros((), jnp.int32))
 
@@ -201,6 +235,25 @@ def double_q_target(q_next_online, q_next_target, reward, done, gamma):
     return reward + gamma * (1.0 - done) * q_eval
 
 
+def n_step_transition(window: Transition, gamma: float) -> Transition:
+    """The n-step transition of the oldest entry of ``window`` (n one-step transitions, oldest first,
+    leading axis n): rewards summed with gamma^k up to and including the first ``done``, bootstrapped
+    from the next observation there with discount gamma^m, m the number of steps summed."""
+    n = window.done.shape[0]
+    alive = jnp.cumprod(jnp.concatenate([jnp.ones_like(window.done[:1]), 1.0 - window.done[:-1]]), axis=0)
+    powers = gamma ** jnp.arange(n, dtype=jnp.float32).reshape((n,) + (1,) * (window.done.ndim - 1))
+    steps = jnp.sum(alive, axis=0).astype(jnp.int32)
+    last = jnp.take_along_axis(window.next_obs, (steps - 1)[None, ..., None], axis=0)[0]
+    return Transition(
+        obs=window.obs[0],
+        action=window.action[0],
+        reward=jnp.sum(powers * alive * window.reward, axis=0),
+        next_obs=last,
+        done=1.0 - jnp.prod(1.0 - window.done, axis=0),
+        discount=gamma ** steps.astype(jnp.float32),
+    )
+
+
 def epsilon(step, config: DDQNConfig):
     """Linear decay from eps_start to eps_end over the first eps_decay_frac of the learning steps."""
     n = max(1, int(config.eps_decay_frac * config.num_chunks * config.steps_per_chunk))
@@ -216,6 +269,7 @@ class TrainState:
     target_params: Any
     opt_state: Any
     replay: Replay
+    window: Transition  # the last n_step one-step transitions of every env (leading axis n_step)
     env_state: Any
     obs: jax.Array
     key: jax.Array
@@ -236,30 +290,34 @@ class Trainer(NamedTuple):
 
 def make_train(config: DDQNConfig, env_params: EnvParams) -> Trainer:
     """Build the pure training functions for one agent; ``jax.vmap(trainer.train)(keys)`` trains seeds."""
-    network = QNetwork(env_params.num_actions, tuple(config.hidden), config.sorted_devices)
+    network = QNetwork(num_actions(env_params, config), tuple(config.hidden))
     tx = optax.chain(optax.clip_by_global_norm(config.max_grad_norm), optax.adam(config.lr))
-    n_act = env_params.num_actions
+    n_act = num_actions(env_params, config)
+    n_in = input_size(env_params, config)
     E = config.num_envs
+    # every env has its own bandwidth (traced): one vmap over envs and their parameters
+    env_batch = env_params.replace(B=train_bandwidths(config, env_params))
+    axes = jax.tree.map(lambda _: None, env_params).replace(B=0)
+    inputs = jax.vmap(lambda s, p: agent_input(s, p, config), (0, axes))
+    resets = jax.vmap(reset_state, (0, axes))
 
-    def env_step(key, state, action):
-        """Step every env; reset finished ones. Returns next obs (pre-reset), state, reward, done, metrics."""
+    def env_step(key, state, accel):
+        """Step every env; reset finished ones. Returns next input (pre-reset), state, reward, done, metrics."""
         k_step, k_reset = jax.random.split(key)
-        accel = action_to_accel(action, env_params)
-        new, rew = jax.vmap(transition, (0, 0, 0, None))(jax.random.split(k_step, E), state, accel, env_params)
-        next_obs = jax.vmap(observation, (0, None))(new, env_params)
-        met = jax.vmap(episode_metrics, (0, None))(new, env_params)
-        fresh = jax.vmap(reset_state, (0, None))(jax.random.split(k_reset, E), env_params)
+        new, rew = jax.vmap(transition, (0, 0, 0, axes))(jax.random.split(k_step, E), state, accel, env_batch)
+        next_x = inputs(new, env_batch)
+        met = jax.vmap(episode_metrics, (0, axes))(new, env_batch)
+        fresh = resets(jax.random.split(k_reset, E), env_batch)
         done = new.done
         state = jax.tree.map(lambda f, s: jnp.where(done.reshape((-1,) + (1,) * (s.ndim - 1)), f, s), fresh, new)
-        obs = jax.vmap(observation, (0, None))(state, env_params)
-        return obs, next_obs, state, rew, done, met
+        return inputs(state, env_batch), next_x, state, rew, done, met
 
     def loss_fn(params, target_params, batch):
         q = network.apply(params, batch.obs)
         q_a = jnp.take_along_axis(q, batch.action[:, None], axis=-1)[:, 0]
         q_next_online = network.apply(params, batch.next_obs)
         q_next_target = network.apply(target_params, batch.next_obs)
-        y = double_q_target(q_next_online, q_next_target, batch.reward, batch.done, config.gamma)
+        y = double_q_target(q_next_online, q_next_target, batch.reward, batch.done, batch.discount)
         return jnp.mean(optax.huber_loss(q_a, jax.lax.stop_gradient(y)))
 
     def update(ts: TrainState, key):
@@ -268,51 +326,63 @@ def make_train(config: DDQNConfig, env_params: EnvParams) -> Trainer:
         upd, opt_state = tx.update(grads, ts.opt_state, ts.params)
         return ts.replace(params=optax.apply_updates(ts.params, upd), opt_state=opt_state, updates=ts.updates + 1), loss
 
-    def act_and_store(ts: TrainState, key, eps):
+    def act(ts: TrainState, key, eps):
+        """One vmapped env step; the transition enters the n-step window (not yet the memory)."""
         k_eps, k_rand, k_env = jax.random.split(key, 3)
         greedy = jnp.argmax(network.apply(ts.params, ts.obs), axis=-1)
         rand = jax.random.randint(k_rand, (E,), 0, n_act)
-        action = jnp.where(jax.random.uniform(k_eps, (E,)) < eps, rand, greedy)
-        action = jax.vmap(shield, (0, 0, None, None))(action, ts.env_state, env_params, config.shield_margin)
-        obs, next_obs, state, rew, done, met = env_step(k_env, ts.env_state, action)
-        tr = Transition(ts.obs, action, rew * config.reward_scale, next_obs, done.astype(jnp.float32))
-        ts = ts.replace(replay=replay_add(ts.replay, tr), env_state=state, obs=obs)
-        return ts, (done, met)
+        chosen = jnp.where(jax.random.uniform(k_eps, (E,)) < eps, rand, greedy)
+        action, accel = jax.vmap(command, (0, 0, axes, None))(chosen, ts.env_state, env_batch, config)
+        obs, next_obs, state, rew, done, met = env_step(k_env, ts.env_state, accel)
+        one = Transition(ts.obs, action, rew * config.reward_scale, next_obs, done.astype(jnp.float32),
+                         jnp.full((E,), config.gamma, jnp.float32))
+        window = jax.tree.map(lambda w, x: jnp.concatenate([w[1:], x[None]]), ts.window, one)
+        ts = ts.replace(window=window, env_state=state, obs=obs)
+        return ts, (done, met, jnp.mean((action != chosen).astype(jnp.float32)))
+
+    def act_and_store(ts: TrainState, key, eps):
+        ts, out = act(ts, key, eps)
+        return ts.replace(replay=replay_add(ts.replay, n_step_transition(ts.window, config.gamma))), out
 
     def init(key) -> TrainState:
         k_net, k_env, k_warm, k_run = jax.random.split(key, 4)
-        dummy = jnp.zeros((obs_size(env_params),), jnp.float32)
-        params = network.init(k_net, dummy)
-        env_state = jax.vmap(reset_state, (0, None))(jax.random.split(k_env, E), env_params)
+        params = network.init(k_net, jnp.zeros((n_in,), jnp.float32))
+        env_state = resets(jax.random.split(k_env, E), env_batch)
         ts = TrainState(
             params=params,
             target_params=params,
             opt_state=tx.init(params),
-            replay=replay_init(config.buffer_size, obs_size(env_params)),
+            replay=replay_init(config.buffer_size, n_in),
+            window=jax.tree.map(lambda x: jnp.zeros((config.n_step, E) + x.shape[1:], x.dtype),
+                                replay_init(E, n_in).data),
             env_state=env_state,
-            obs=jax.vmap(observation, (0, None))(env_state, env_params),
+            obs=inputs(env_state, env_batch),
             key=k_run,
             step=jnp.zeros((), jnp.int32),
             updates=jnp.zeros((), jnp.int32),
             chunk=jnp.zeros((), jnp.int32),
         )
 
-        def warm(ts, k):
-            ts, _ = act_and_store(ts, k, 1.0)
-            return ts, None
+        def warm(store):
+            def step(ts, k):
+                ts, _ = (act_and_store if store else act)(ts, k, 1.0)
+                return ts, None
+            return step
 
-        ts, _ = jax.lax.scan(warm, ts, jax.random.split(k_warm, config.warmup_steps))
+        k_fill, k_warm = jax.random.split(k_warm)
+        ts, _ = jax.lax.scan(warm(False), ts, jax.random.split(k_fill, config.n_step - 1))  # fill the window
+        ts, _ = jax.lax.scan(warm(True), ts, jax.random.split(k_warm, config.warmup_steps))
         return ts
 
     def one_step(ts: TrainState, _):
         key, k_act, k_upd = jax.random.split(ts.key, 3)
         ts = ts.replace(key=key)
-        ts, (done, met) = act_and_store(ts, k_act, epsilon(ts.step, config))
+        ts, (done, met, shielded) = act_and_store(ts, k_act, epsilon(ts.step, config))
         ts, losses = jax.lax.scan(update, ts, jax.random.split(k_upd, config.updates_per_step))
         ts = ts.replace(step=ts.step + 1)
         d = done.astype(jnp.float32)
         stats = {k: jnp.sum(d * met[k].astype(jnp.float32)) for k in ("mean_psnr", "return", "arrived", "coverage")}
-        return ts, {"episodes": jnp.sum(d), "loss": jnp.mean(losses), **stats}
+        return ts, {"episodes": jnp.sum(d), "loss": jnp.mean(losses), "shield_share": shielded, **stats}
 
     def one_chunk(ts: TrainState, _):
         eps = epsilon(ts.step, config)
@@ -327,6 +397,7 @@ def make_train(config: DDQNConfig, env_params: EnvParams) -> Trainer:
             "epsilon": eps,
             "episodes": s["episodes"].sum(),
             "loss": s["loss"].mean(),
+            "shield_share": s["shield_share"].mean(),
             **{k: s[k].sum() / n for k in ("mean_psnr", "return", "arrived", "coverage")},
         }
         return ts, out
@@ -338,4 +409,3 @@ def make_train(config: DDQNConfig, env_params: EnvParams) -> Trainer:
         return run(init(key), config.num_chunks)
 
     return Trainer(config=config, network=network, init=init, run=run, train=train)
-

@@ -1,65 +1,58 @@
-"""Greedy (epsilon = 0) evaluation of a trained DDQN and paired comparison with the baselines.
-
-Episodes run through the baselines' shared evaluation path (``baselines.run``: one jitted,
-vmapped ``semuav_jax.rollout`` program, MODEL.md section 8 metrics), on the same per-episode keys.
-"""
+"""Greedy (epsilon = 0) evaluation of a trained DDQN through ``semuav_jax.rollout``: one jitted,
+vmapped program over episodes, the metrics of MODEL.md section 8 plus ``shield_share``."""
 
 from __future__ import annotations
 
 import functools
+from typing import Any
 
 import jax
+import jax.numpy as jnp
 import numpy as np
+from flax import struct
 
-from baselines import DEFAULT_V_B
-from baselines import evaluate as baseline_evaluate
-from baselines import run as baseline_run
-from semuav_jax.actions import action_to_accel
-from semuav_jax.agents.shield import shield
-from semuav_jax.observation import observation
+from semuav_jax.agents.ddqn import DDQNConfig, agent_input, command
 from semuav_jax.params import EnvParams, validate_params
-from semuav_jax.stats import mean_ci
+from semuav_jax.rollout import rollout
+
+
+@struct.dataclass
+class AgentState:
+    """Policy state of one evaluation episode: the network weights and the shield's count."""
+
+    net: Any
+    shielded: jax.Array
+    slots: jax.Array
+
+    def episode_metrics(self) -> dict:
+        """shield_share (MODEL.md section 8): share of the episode's slots in which the shield replaced the action."""
+        return {"shield_share": self.shielded / jnp.maximum(self.slots, 1)}
+
+
+def agent_state(net_params) -> AgentState:
+    return AgentState(net=net_params, shielded=jnp.zeros((), jnp.int32), slots=jnp.zeros((), jnp.int32))
 
 
 @functools.lru_cache(maxsize=None)
-def greedy_policy(network, shield_margin: float | None = None):
-    """Rollout policy ``(net_params, env_state, params) -> (accel, net_params)``: argmax Q of the
-    observation, through the return-home shield unless ``shield_margin`` is None."""
+def greedy_policy(network, config: DDQNConfig):
+    """Rollout policy ``(AgentState, env_state, params) -> (accel, AgentState)``: argmax Q of the
+    agent's input, through the BS's shield (unless ``config.shield_margin`` is None)."""
 
-    def policy(net_params, state, params: EnvParams):
-        a = jax.numpy.argmax(network.apply(net_params, observation(state, params)))
-        return action_to_accel(shield(a, state, params, shield_margin), params), net_params
+    def policy(ps: AgentState, state, params: EnvParams):
+        chosen = jnp.argmax(network.apply(ps.net, agent_input(state, params, config)))
+        sent, accel = command(chosen, state, params, config)
+        live = ~state.done
+        ps = ps.replace(shielded=ps.shielded + (live & (sent != chosen)), slots=ps.slots + live)
+        return accel, ps
 
     return policy
 
 
-def evaluate_agent(network, net_params, keys, params: EnvParams, shield_margin: float | None = None) -> dict:
-    """Metrics (dict of (E,) NumPy arrays) of the greedy policy of ``net_params`` on episodes ``keys``."""
+def evaluate_agent(network, net_params, config: DDQNConfig, keys, params: EnvParams, trace: bool = False):
+    """Metrics (dict of (E,) NumPy arrays, with ``shield_share``) of the greedy policy of ``net_params``
+    on the episodes ``keys``; with ``trace``, also the per-slot trace of ``rollout``."""
     validate_params(params)
-    policy = greedy_policy(network, shield_margin)
-    return jax.tree.map(np.asarray, baseline_run(policy, keys, params, net_params, state_axes=None))
-
-
-def baseline_results(keys, params: EnvParams, baselines=("greedy", "tsp"), v_b=None) -> dict:
-    """Per-episode metrics of each baseline on episodes ``keys``."""
-    v_b = DEFAULT_V_B if v_b is None else v_b
-    return {b: baseline_evaluate(b, keys, params, v_b=v_b) for b in baselines}
-
-
-def compare(
-    network, net_params, keys, params: EnvParams, reference: dict | None = None, shield_margin: float | None = None
-) -> dict:
-    """Mean PSNR of the agent and of each baseline on the same episodes, with paired margins.
-
-    ``reference`` is :func:`baseline_results` on the same ``keys`` (computed here when None).
-    Returns ``{name: {metric: (mean, ci95)}, "margin_vs_<b>": (mean, ci95)}``; the margin is the
-    per-episode difference agent - baseline (same layout, delays and images).
-    """
-    reference = baseline_results(keys, params) if reference is None else reference
-    agent = evaluate_agent(network, net_params, keys, params, shield_margin)
-    out = {}
-    for name, m in {"ddqn": agent, **reference}.items():
-        out[name] = {k: mean_ci(m[k]) for k in ("mean_psnr", "coverage", "arrived", "mission_time")}
-    for name, m in reference.items():
-        out[f"margin_vs_{name}"] = mean_ci(agent["mean_psnr"] - m["mean_psnr"])
-    return out
+    metrics, tr = rollout(greedy_policy(network, config), keys, params, agent_state(net_params), trace=trace,
+                          state_axes=None)
+    metrics = jax.tree.map(np.asarray, metrics)
+    return (metrics, jax.tree.map(np.asarray, tr)) if trace else metrics

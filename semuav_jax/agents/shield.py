@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from semuav_jax.actions import action_table, axis_levels
+from semuav_jax.actions import HOME, action_table, axis_levels
 from semuav_jax.control import airspace_cap, home_command, time_home
 from semuav_jax.params import EnvParams
 
@@ -25,11 +25,6 @@ def home_speed(params: EnvParams):
     leaves a velocity error of up to half a level step (a_max tau / (levels - 1)) on each axis."""
     dead = jnp.sqrt(2.0) * params.a_max * params.tau / max(params.levels - 1, 1)
     return jnp.maximum(params.v_max - dead, 0.5 * params.v_max)
-
-
-def shield_time_home(q, v, params: EnvParams):
-    """Eq. 7.5 for the home command at v_max with the table's cruise speed :func:`home_speed`."""
-    return time_home(q, v, params.v_max, params, cruise=home_speed(params))
 
 
 def home_action(q, v, params: EnvParams):
@@ -54,12 +49,26 @@ def airspace_action(action, q, v, params: EnvParams):
     return i[0] * params.levels + i[1]
 
 
+def late(state, params: EnvParams, margin: float, cruise=None):
+    """True once the time left after this slot, (K - t - 1) tau, is at most the flight home of
+    eq. 7.5 at v_max (cruising at ``cruise``) + ``margin`` seconds."""
+    left = (params.K - state.t - 1) * params.tau
+    return left <= time_home(state.q, state.v, params.v_max, params, cruise=cruise) + margin
+
+
 def shield(action, state, params: EnvParams, margin: float | None):
-    """The action the BS sends: :func:`home_action` once the time left after this slot,
-    (K - t - 1) tau, is at most :func:`shield_time_home` + ``margin`` seconds; else ``action``
-    kept inside the airspace (:func:`airspace_action`). ``margin`` None: no shield at all."""
+    """The table action the BS sends: :func:`home_action` when :func:`late` (cruising at
+    :func:`home_speed`), else ``action`` kept inside the airspace (:func:`airspace_action`).
+    ``margin`` None: no shield at all."""
     if margin is None:
         return action
-    left = (params.K - state.t - 1) * params.tau
-    late = left <= shield_time_home(state.q, state.v, params) + margin
-    return jnp.where(late, home_action(state.q, state.v, params), airspace_action(action, state.q, state.v, params))
+    return jnp.where(late(state, params, margin, home_speed(params)), home_action(state.q, state.v, params),
+                     airspace_action(action, state.q, state.v, params))
+
+
+def waypoint_shield(action, state, params: EnvParams, margin: float | None):
+    """The waypoint action (eq. 6.2) the BS sends: HOME when :func:`late`, else ``action`` (the
+    controller of eq. 7.1 already keeps every waypoint command inside the airspace)."""
+    if margin is None:
+        return action
+    return jnp.where(late(state, params, margin), HOME, action)

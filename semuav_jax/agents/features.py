@@ -1,0 +1,95 @@
+"""The Q-network's input (docs/ddqn.md, "Input"): what the BS knows (MODEL.md section 5), arranged
+so that an MLP can use it. Fixed transforms without parameters.
+
+- :func:`table_features` (the paper's acceleration table): the observation of eq. 5.1 with device
+  blocks sorted nearest first and a ``tanh(20 x)`` companion for every relative offset;
+- :func:`waypoint_features` (waypoint actions, eq. 6.2): device blocks in the order the actions
+  address them, each with its remaining PSNR gain and the time slack left after flying through it
+  and home (eqs. 7.4-7.5), plus the bandwidth and the hover rate, so one network serves every B.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from semuav_jax import channel
+from semuav_jax.actions import device_order
+from semuav_jax.control import time_home, time_to_pass
+from semuav_jax.observation import DEVICE_FEATURES, GLOBAL_FEATURES
+from semuav_jax.params import EnvParams
+
+NEAR_GAIN = 20.0  # tanh(20 x): resolves tens of metres in area-normalized offsets
+SLACK_SPEED = 12.0  # m/s: the pass speed at which a device's time slack is computed
+B_REF = 20e3  # Hz: the bandwidth feature is log2(B / B_REF)
+
+
+def table_features(obs):
+    """The observation (eq. 5.1) made permutation-invariant: device blocks sorted nearest first
+    (a device's index carries no meaning on random layouts), and every relative offset (devices and
+    goal) with a ``tanh(20 x)`` companion that resolves the ~32 m communication radius, which the
+    area normalization squeezes to ~0.03. Works on one observation or a batch."""
+    glob, dev = obs[..., :GLOBAL_FEATURES], obs[..., GLOBAL_FEATURES:]
+    dev = dev.reshape(dev.shape[:-1] + (-1, DEVICE_FEATURES))
+    order = jnp.argsort(jnp.sum(dev[..., :2] ** 2, axis=-1), axis=-1)
+    dev = jnp.take_along_axis(dev, order[..., None], axis=-2)
+    dev = jnp.concatenate([dev, jnp.tanh(NEAR_GAIN * dev[..., :2])], axis=-1)
+    near_goal = jnp.tanh(NEAR_GAIN * glob[..., GLOBAL_FEATURES - 2:])
+    return jnp.concatenate([glob, near_goal, dev.reshape(dev.shape[:-2] + (-1,))], axis=-1)
+
+
+WAYPOINT_GLOBAL = 14
+WAYPOINT_DEVICE = 9
+
+
+def waypoint_size(params: EnvParams) -> int:
+    return WAYPOINT_GLOBAL + WAYPOINT_DEVICE * params.N
+
+
+def waypoint_features(state, params: EnvParams):
+    """The input of a waypoint agent for one ``EnvState``: a flat float32 vector, entries in about [-1, 1].
+
+    Global: q, v, a_prev, time left, goal offset and its tanh, the time slack home (eq. 7.5) / T,
+    log2(B / B_REF) and the symbols per slot at a hover (eq. 2.6 at r = 0, share of M). Per device,
+    in :func:`device_order`: offset and its tanh, m/M, x, phi and the PSNR still to gain (both by the
+    range of C), and the time slack after passing it at SLACK_SPEED and flying home (eqs. 7.4-7.5) / T.
+    """
+    area = jnp.stack([params.Lx, params.Ly])
+    T = params.K * params.tau
+    left = (params.K - state.t) * params.tau
+    lo, hi = jnp.min(params.C), jnp.max(params.C)
+    span = jnp.maximum(hi - lo, 1e-6)
+    goal = (params.q_fin - state.q) / area
+    hover = channel.rate(0.0, params.H, params.P_n, params.B, params) * params.tau / (params.beta * params.M)
+    glob = jnp.concatenate([
+        state.q / area,
+        state.v / params.v_max,
+        state.a_prev / params.a_max,
+        jnp.stack([left / T]),
+        goal,
+        jnp.tanh(NEAR_GAIN * goal),
+        jnp.stack([(left - time_home(state.q, state.v, params.v_max, params)) / T,
+                   jnp.log2(params.B / B_REF), hover]),
+    ])
+    order = device_order(state, params)
+    pos = state.dev_pos[order]
+    off = (pos - state.q) / area
+
+    def slack(p):
+        d = p - state.q
+        u = d / jnp.maximum(jnp.linalg.norm(d), 1e-6)
+        need = time_to_pass(state.q, state.v, p, SLACK_SPEED, params) + time_home(p, SLACK_SPEED * u, SLACK_SPEED, params)
+        return (left - need) / T
+
+    phi = state.phi[order]
+    top = params.C[state.dev_img[order], params.M]
+    dev = jnp.concatenate([
+        off,
+        jnp.tanh(NEAR_GAIN * off),
+        (state.m[order] / params.M)[:, None],
+        state.x[order][:, None].astype(jnp.float32),
+        ((phi - lo) / span)[:, None],
+        (jnp.maximum(top - phi, 0.0) / span)[:, None],
+        jax.vmap(slack)(pos)[:, None],
+    ], axis=-1)
+    return jnp.concatenate([glob, dev.reshape(-1)]).astype(jnp.float32)

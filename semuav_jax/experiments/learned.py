@@ -1,0 +1,105 @@
+"""The learned controller against the strongest references (docs/ddqn.md, "Results").
+
+Every training seed is evaluated greedily on the same test layouts (``keys.TEST_SEED``) as greedy
+and TSP at the paper's 8.9 m/s and at their tuned speed v_b* (chosen on ``keys.VALIDATION_SEED``
+layouts, ``baselines.report.tune``) and the offline planner, at each bandwidth. Margins are
+per-episode paired differences; the statistic across seeds is the mean of the seeds' means with
+its t interval. No seed is selected: every one is reported.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from baselines.report import BANDWIDTHS, flights, summary, tune
+from semuav_jax.agents.ddqn import DDQNConfig
+from semuav_jax.agents.evaluate import evaluate_agent
+from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
+from semuav_jax.params import EnvParams
+from semuav_jax.stats import mean_ci, wilson_interval
+
+REFERENCES = ("greedy v_b*", "tsp v_b*")  # the margins that must be positive
+
+
+def seed_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams) -> list[dict]:
+    """Per-episode metrics of each seed's greedy policy (``nets`` has a leading seed axis)."""
+    import jax
+
+    seeds = jax.tree.leaves(nets)[0].shape[0]
+    return [evaluate_agent(network, jax.tree.map(lambda x: x[s], nets), config, keys, params) for s in range(seeds)]
+
+
+def compare(network, nets, config: DDQNConfig, params: EnvParams, bandwidths=BANDWIDTHS, episodes: int = 1000,
+            validation_episodes: int = 500, workers: int = 2, ablate_shield: bool = True, log=print) -> dict:
+    """Every number of the table of docs/ddqn.md (JSON-ready) for the seeds ``nets`` of one agent."""
+    import dataclasses
+
+    tuned = tune(params, bandwidths, validation_episodes, workers=workers)
+    log("v_b* on validation layouts: " + ", ".join(f"{n} {tuned[n]['v_star']}" for n in ("greedy", "tsp")))
+    keys = episode_keys(TEST_SEED, episodes)
+    refs = flights(params, keys, tuned, bandwidths, workers)
+    unshielded = dataclasses.replace(config, shield_margin=None)
+    rows = []
+    for b, ref in zip(bandwidths, refs):
+        pb = params.replace(B=b)
+        agent = seed_metrics(network, nets, config, keys, pb)
+        row = {"B": float(b), "references": {k: {"v_b": m["v_b"], **summary(m)} for k, m in ref.items()},
+               "seeds": []}
+        for m in agent:
+            s = {**summary(m), "shield_share": float(np.mean(m["shield_share"]))}
+            for name in (*REFERENCES, "planner"):
+                s[f"minus {name}"] = mean_ci(m["mean_psnr"] - ref[name]["mean_psnr"])
+            row["seeds"].append(s)
+        if ablate_shield and config.shield_margin is not None:
+            for s, m in zip(row["seeds"], seed_metrics(network, nets, unshielded, keys, pb)):
+                s["arrived_without_shield"] = float(np.mean(m["arrived"]))
+                s["mean_psnr_without_shield"] = float(np.mean(m["mean_psnr"]))
+        means = [s["mean_psnr"] for s in row["seeds"]]
+        row["agent"] = {"mean_psnr": mean_ci(means)}
+        for name in (*REFERENCES, "planner"):
+            row["agent"][f"minus {name}"] = mean_ci([s[f"minus {name}"][0] for s in row["seeds"]])
+        arrived = np.concatenate([np.asarray(m["arrived"], np.float64) for m in agent])
+        row["agent"]["arrived"] = float(arrived.mean())
+        row["agent"]["arrived_wilson95"] = [float(x) for x in wilson_interval(arrived.mean(), arrived.size)]
+        row["agent"]["shield_share"] = float(np.mean([s["shield_share"] for s in row["seeds"]]))
+        rows.append(row)
+        a = row["agent"]
+        log(f"B = {b / 1e3:g} kHz: agent {a['mean_psnr'][0]:.2f} ± {a['mean_psnr'][1]:.2f} dB over "
+            f"{len(means)} seeds ({', '.join(f'{x:.2f}' for x in means)}); "
+            + ", ".join(f"{n} {a['minus ' + n][0]:+.2f} ± {a['minus ' + n][1]:.2f}" for n in (*REFERENCES, "planner")))
+    return {"episodes": episodes, "test_seed": TEST_SEED, "validation_seed": VALIDATION_SEED,
+            "validation_episodes": validation_episodes, "tuning": tuned, "rows": rows}
+
+
+def markdown(r: dict) -> str:
+    """The tables of docs/ddqn.md: the agent per seed and across seeds against the references."""
+    lines = [
+        f"{r['episodes']} test layouts (seed {r['test_seed']}), never used in training or selection; "
+        f"v_b* from {r['validation_episodes']} validation layouts (seed {r['validation_seed']}).",
+        "",
+        "| B (kHz) | agent, mean of seeds (dB) | − greedy v_b* | − TSP v_b* | − planner | arrival | shield share |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for row in r["rows"]:
+        a = row["agent"]
+        cells = [f"{a[f'minus {n}'][0]:+.2f} ± {a[f'minus {n}'][1]:.2f}" for n in (*REFERENCES, "planner")]
+        lines.append(f"| {row['B'] / 1e3:g} | {a['mean_psnr'][0]:.2f} ± {a['mean_psnr'][1]:.2f} | " + " | ".join(cells)
+                     + f" | {100 * a['arrived']:.1f} % | {100 * a['shield_share']:.1f} % |")
+    lines += ["", "Across seeds: mean of the seeds' means ± the t interval (95 %) over seeds.", "",
+              "| B (kHz) | seed | mean PSNR (dB) | − greedy v_b* (paired 95 % CI) | − TSP v_b* | − planner | arrival "
+              "| shield share | arrival without shield |",
+              "|---|---|---|---|---|---|---|---|---|"]
+    for row in r["rows"]:
+        for i, s in enumerate(row["seeds"]):
+            cells = [f"{s[f'minus {n}'][0]:+.2f} ± {s[f'minus {n}'][1]:.2f}" for n in (*REFERENCES, "planner")]
+            no = s.get("arrived_without_shield")
+            lines.append(f"| {row['B'] / 1e3:g} | {i} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | " + " | ".join(cells)
+                         + f" | {100 * s['arrived']:.1f} % | {100 * s['shield_share']:.1f} % | "
+                         + ("" if no is None else f"{100 * no:.1f} %") + " |")
+    lines += ["", "| B (kHz) | reference | v_b (m/s) | mean PSNR (dB) | coverage | arrival |", "|---|---|---|---|---|---|"]
+    for row in r["rows"]:
+        for name, s in row["references"].items():
+            v = "plan" if s["v_b"] is None else f"{s['v_b']:g}"
+            lines.append(f"| {row['B'] / 1e3:g} | {name} | {v} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | "
+                         f"{s['coverage']:.2f} | {100 * s['arrived']:.1f} % |")
+    return "\n".join(lines)
