@@ -18,13 +18,6 @@ from pathlib import Path
 from semuav_jax.io import atomic_write
 
 SCENARIO = {"scenario": "random", "reward_mode": "gain", "bandwidth": 25e3, "kappa_c": 10.0}
-PRESETS = {
-    "default": {},
-    # the paper's configuration (MODEL.md section 6, PAPER_CLAIMS.md): paper reward with the shield, lr 5e-5,
-    # MLP 128-128-64, the 9 accelerations, the raw observation, 1-step targets, trained at one bandwidth
-    "paper": {"reward_mode": "paper", "actions": "table", "sorted_devices": False, "lr": 5e-5, "hidden": (128, 128, 64),
-              "n_step": 1, "gamma": 0.999, "bandwidth_range": None},
-}
 CONFIG_FILE, METRICS_FILE, CKPT_FILE, MODEL_FILE = "config.json", "metrics.csv", "checkpoint.msgpack", "model.msgpack"
 METRIC_COLUMNS = ("seed", "chunk", "env_steps", "epsilon", "episodes", "loss", "mean_psnr", "return", "arrived",
                   "coverage", "shield_share")
@@ -51,9 +44,12 @@ def _boolean(text: str) -> bool:
     return text.lower() == "true"
 
 
+NONE = "none"  # an option set to none (e.g. --shield-margin none), unlike one not given (None)
+
+
 def _none_or(kind):
     def parse(text: str):
-        return None if text.lower() == "none" else kind(text)
+        return NONE if text.lower() == NONE else kind(text)
     parse.__name__ = kind.__name__
     return parse
 
@@ -61,7 +57,7 @@ def _none_or(kind):
 def parse_args(argv=None):
     import dataclasses
 
-    from semuav_jax.agents.ddqn import DDQNConfig
+    from semuav_jax.agents.ddqn import PRESETS, DDQNConfig
 
     p = argparse.ArgumentParser(description="Train the BS's DDQN from scratch (docs/ddqn.md). Unset options come "
                                 "from --preset; on --resume, from the run folder.")
@@ -89,6 +85,8 @@ def parse_args(argv=None):
                    help="stop after this many segments in this session (continue later with --resume)")
     p.add_argument("--eval-episodes", type=int, default=1000,
                    help="test layouts for the comparison with the tuned baselines and the planner (0: skip)")
+    p.add_argument("--validation-episodes", type=int, default=500,
+                   help="validation layouts that choose the baselines' tuned speed v_b* (default: %(default)s)")
     p.add_argument("--workers", type=int, default=2, help="processes for OR-Tools and the planner in the evaluation")
     p.add_argument("--curves", type=str, default=None, help="PSNR curves .npz, or 'synthetic' for the stand-in test curves (default: the shipped DeepJSCC curves)")
     p.add_argument("--out", type=str, default=None, help="run folder (default: runs/ddqn_<preset>)")
@@ -99,7 +97,7 @@ def parse_args(argv=None):
     args.command = " ".join(["python train.py", *(sys.argv[1:] if argv is None else argv)])
     if args.out is None:
         args.out = f"runs/ddqn_{args.preset}"
-    for name in ("seeds", "segments", "max_segments", "workers"):
+    for name in ("seeds", "segments", "max_segments", "workers", "validation_episodes"):
         if getattr(args, name) is not None and getattr(args, name) < 1:
             raise UsageError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
     if args.eval_episodes < 0:
@@ -111,15 +109,13 @@ def run_config(args) -> dict:
     """The JSON-able description of a run (written to config.json; read back on --resume)."""
     import dataclasses
 
-    from semuav_jax.agents.ddqn import DDQNConfig
+    from semuav_jax.agents.ddqn import PRESETS, DDQNConfig, preset_config
 
     preset = PRESETS[args.preset]
     names = {f.name for f in dataclasses.fields(DDQNConfig)}
     given = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
-    for k in ("hidden", "bandwidth_range"):
-        if k in given:
-            given[k] = None if given[k] == [None] else tuple(given[k])
-    cfg = DDQNConfig(**{**{k: v for k, v in preset.items() if k in names}, **given})
+    given = {k: None if v == NONE or v == [NONE] else tuple(v) if isinstance(v, list) else v for k, v in given.items()}
+    cfg = preset_config(args.preset, **given)
     scenario = {k: getattr(args, k) if getattr(args, k) is not None else preset.get(k, v) for k, v in SCENARIO.items()}
     return {"preset": args.preset, **scenario, "seeds": args.seeds, "seed": args.seed, "segments": args.segments,
             "curves": args.curves, "command": args.command, "ddqn": cfg.to_dict()}
@@ -262,7 +258,7 @@ def main(argv=None) -> int:
 
         bandwidths = BANDWIDTHS if config.bandwidth_range is not None else (cfg["bandwidth"],)
         report = compare(trainer.network, state.params, config, params, bandwidths, args.eval_episodes,
-                         workers=args.workers, log=lambda m: tqdm.write(m))
+                         args.validation_episodes, args.workers, log=tqdm.write)
         report.update(train_wall_s=wall, **provenance(params))
         atomic_write(out / "eval.json", json.dumps(report, indent=2).encode())
         atomic_write(out / "eval.md", (markdown(report) + "\n").encode())

@@ -79,7 +79,11 @@ def fig2c(traj: dict, params, path):
     for name, t in traj.items():
         ax.plot(t["q"][:, 0], t["q"][:, 1], color=STYLE[name]["color"], lw=1.6,
                 label=f"{LABEL[name]}: {t['mean_psnr']:.1f} dB, {t['coverage']:.0f} covered, {t['mission_time']:.0f} s")
-    ax.set(xlim=(0, float(params.Lx)), ylim=(0, float(params.Ly)), xlabel="x (m)", ylabel="y (m)", aspect="equal",
+    # the UAV may leave the area (no wall, docs/model.md eq. 3.3): the view holds the area and every path
+    pts = np.concatenate([np.array([[0.0, 0.0], [float(params.Lx), float(params.Ly)]])] + [t["q"] for t in traj.values()])
+    lo, hi = pts.min(0) - 10.0, pts.max(0) + 10.0
+    ax.add_patch(plt.Rectangle((0, 0), float(params.Lx), float(params.Ly), fill=False, ls=":", color="0.5"))
+    ax.set(xlim=(lo[0], hi[0]), ylim=(lo[1], hi[1]), xlabel="x (m)", ylabel="y (m)", aspect="equal",
            title=f"(c) trajectories on the paper layout, B = {float(params.B) / 1e3:g} kHz "
                  f"(grey: {radius:.0f} m coverage discs)")
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))

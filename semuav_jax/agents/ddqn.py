@@ -48,11 +48,11 @@ def _f(default, help: str):
 class DDQNConfig:
     """Hyperparameters (static). ``total_steps`` counts environment steps summed over envs."""
 
-    num_envs: int = _f(32, "parallel environments per agent")
-    total_steps: int = _f(3_000_000, "environment steps per agent, summed over its envs")
+    num_envs: int = _f(64, "parallel environments per agent")
+    total_steps: int = _f(24_000_000, "environment steps per agent, summed over its envs")
     steps_per_chunk: int = _f(250, "vmapped env steps per compiled chunk (target sync and metrics per chunk)")
     updates_per_step: int = _f(1, "gradient updates after each vmapped env step")
-    batch_size: int = _f(128, "replay minibatch")
+    batch_size: int = _f(256, "replay minibatch")
     buffer_size: int = _f(50_000, "replay memory, transitions")
     learning_starts: int = _f(10_000, "random transitions stored before learning")
     lr: float = _f(2.5e-4, "Adam learning rate")
@@ -61,14 +61,14 @@ class DDQNConfig:
     eps_end: float = _f(0.02, "final exploration rate")
     eps_decay_frac: float = _f(0.5, "share of training over which epsilon decays linearly")
     target_period: int = _f(4, "chunks between target-network syncs")
-    n_step: int = _f(5, "steps summed in each return before bootstrapping")
+    n_step: int = _f(10, "steps summed in each return before bootstrapping")
     reward_scale: float = _f(0.01, "multiplies every reward before learning")
     max_grad_norm: float = _f(10.0, "global gradient-norm clip")
     hidden: tuple = _f((128, 128, 64), "hidden layer widths of the Q-network MLP")
     sorted_devices: bool = _f(True, "table actions: sort device blocks nearest first and add tanh offsets")
     shield_margin: float | None = _f(2.0, "seconds of slack of the BS's return-home shield; none: no shield")
     actions: str = _f("waypoint", "waypoint (eq. 6.2: device, speed or hover, home) or table (the paper's 9 accelerations)")
-    bandwidth_range: tuple | None = _f((4e3, 50e3), "(lo, hi) Hz: env e trains at a bandwidth geometric in the range "
+    bandwidth_range: tuple | None = _f((4e3, 45e3), "(lo, hi) Hz: the envs train at bandwidths evenly spaced in the range "
                                        "(one agent for every B); none: the scenario's B")
 
     def __post_init__(self):
@@ -125,6 +125,21 @@ class DDQNConfig:
         return cls(**d)
 
 
+PRESETS = {
+    "default": {},
+    # the paper's configuration (MODEL.md section 6, PAPER_CLAIMS.md): paper reward with the shield, lr 5e-5,
+    # MLP 128-128-64, the 9 accelerations, the raw observation, 1-step targets, trained at one bandwidth
+    "paper": {"reward_mode": "paper", "actions": "table", "sorted_devices": False, "lr": 5e-5, "hidden": (128, 128, 64),
+              "n_step": 1, "gamma": 0.999, "bandwidth_range": None},
+}  # DDQNConfig overrides, plus the scenario's reward_mode
+
+
+def preset_config(name: str, **overrides) -> DDQNConfig:
+    """The DDQNConfig of preset ``name`` with ``overrides``."""
+    fields = {f.name for f in dataclasses.fields(DDQNConfig)}
+    return DDQNConfig(**{**{k: v for k, v in PRESETS[name].items() if k in fields}, **overrides})
+
+
 def agent_input(state, params: EnvParams, config: DDQNConfig):
     """The Q-network's input for one ``EnvState`` (``agents/features.py``)."""
     if config.actions == "waypoint":
@@ -152,11 +167,11 @@ def command(action, state, params: EnvParams, config: DDQNConfig):
 
 
 def train_bandwidths(config: DDQNConfig, params: EnvParams):
-    """(num_envs,) bandwidth of each training env: geometric over ``bandwidth_range``, or params.B."""
+    """(num_envs,) bandwidth of each training env: evenly spaced over ``bandwidth_range``, or params.B."""
     if config.bandwidth_range is None:
         return jnp.full((config.num_envs,), params.B, jnp.float32)
     lo, hi = config.bandwidth_range
-    return jnp.geomspace(lo, hi, config.num_envs).astype(jnp.float32)
+    return jnp.linspace(lo, hi, config.num_envs).astype(jnp.float32)
 
 
 class QNetwork(nn.Module):
