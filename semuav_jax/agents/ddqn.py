@@ -49,7 +49,7 @@ class DDQNConfig:
     """Hyperparameters (static). ``total_steps`` counts environment steps summed over envs."""
 
     num_envs: int = _f(64, "parallel environments per agent")
-    total_steps: int = _f(24_000_000, "environment steps per agent, summed over its envs")
+    total_steps: int = _f(16_000_000, "environment steps per agent, summed over its envs")
     steps_per_chunk: int = _f(250, "vmapped env steps per compiled chunk (target sync and metrics per chunk)")
     updates_per_step: int = _f(1, "gradient updates after each vmapped env step")
     batch_size: int = _f(256, "replay minibatch")
