@@ -23,9 +23,11 @@ os.environ["XLA_FLAGS"] = (
 
 import jax  # noqa: E402  (XLA_FLAGS must be set first)
 
-from semuav_jax import paper  # noqa: E402
+from baselines import sweep, tsp_ranks  # noqa: E402
 from semuav_jax.agents.scenarios import scenario_params  # noqa: E402
+from semuav_jax.experiments.fig2 import BANDWIDTHS, VELOCITIES  # noqa: E402
 from semuav_jax.io import atomic_write  # noqa: E402
+from semuav_jax.sharding import shard_episodes  # noqa: E402
 
 
 def main():
@@ -34,15 +36,16 @@ def main():
     rows, t_all = [], time.perf_counter()
     for name in ("greedy", "tsp"):
         t0 = time.perf_counter()
-        m = paper.baseline_sweep(name, keys, params, paper.BANDWIDTHS, paper.VELOCITIES)
+        rank = shard_episodes(tsp_ranks(keys, params)) if name == "tsp" else None
+        m = sweep(name, shard_episodes(keys), params, v_b=VELOCITIES, B=BANDWIDTHS, rank=rank)
         rows.append({"policy": name, "wall_s": time.perf_counter() - t0, "episodes": int(m["mean_psnr"].size)})
     total = time.perf_counter() - t_all
     print(f"{'policy':>8} {'episodes':>9} {'wall s':>8}")
     for r in rows:
         print(f"{r['policy']:>8} {r['episodes']:>9} {r['wall_s']:>8.1f}")
     print(f"total {total:.1f} s (compile, OR-Tools and {sum(r['episodes'] for r in rows) * params.K:,} env steps)")
-    result = {"devices": jax.device_count(), "layouts": args.layouts, "bandwidths": paper.BANDWIDTHS,
-              "velocities": paper.VELOCITIES, "rows": rows, "total_s": total}
+    result = {"devices": jax.device_count(), "layouts": args.layouts, "bandwidths": BANDWIDTHS,
+              "velocities": VELOCITIES, "rows": rows, "total_s": total}
     atomic_write(args.out, json.dumps(result, indent=2).encode())
 
 

@@ -9,13 +9,20 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.collections import LineCollection  # noqa: E402
 import numpy as np  # noqa: E402
 
 from semuav_jax.stats import wilson_interval  # noqa: E402
 from semuav_jax.io import atomic_write  # noqa: E402
 
-STYLE = {"DDQN": dict(color="C3", marker="o"), "greedy": dict(color="C0", marker="s"), "tsp": dict(color="C2", marker="^")}
-LABEL = {"DDQN": "DDQN", "greedy": "Greedy", "tsp": "TSP"}
+STYLE = {
+    "agent": dict(color="C3", marker="o", label="DDQN (ours, mean of seeds)"),
+    "greedy 8.9": dict(color="C0", marker="s", ls=":", mfc="none", label="greedy, 8.9 m/s"),
+    "tsp 8.9": dict(color="C2", marker="^", ls=":", mfc="none", label="TSP, 8.9 m/s"),
+    "greedy v_b*": dict(color="C0", marker="s", label="greedy, tuned v_b*"),
+    "tsp v_b*": dict(color="C2", marker="^", label="TSP, tuned v_b*"),
+    "planner": dict(color="C4", marker="D", label="offline planner"),
+}
 
 
 def save_figure(fig, path: Path, dpi: int = 120):
@@ -27,77 +34,100 @@ def save_figure(fig, path: Path, dpi: int = 120):
     atomic_write(path, buf.getvalue())
 
 
-def _panel(rows, panel, x_key, x_scale, xlabel, title, path, hline_ddqn=False):
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
-    for policy in ("DDQN", "greedy", "tsp"):
-        rs = sorted((r for r in rows if r["panel"] == panel and r["policy"] == policy), key=lambda r: r[x_key] or 0)
-        if not rs:
-            continue
-        for ax, metric in zip(axes, ("mean_psnr", "coverage", "arrived")):
-            y = np.array([r[metric] for r in rs])
-            if metric == "arrived":
-                lo, hi = wilson_interval(y, np.array([r["episodes"] for r in rs]))
-            else:
-                e = np.array([r[f"{metric}_ci95"] for r in rs])
-                lo, hi = y - e, y + e
-            if hline_ddqn and policy == "DDQN":
-                ax.axhline(y[0], color=STYLE[policy]["color"], label=f"{LABEL[policy]} (no speed parameter)")
-                ax.axhspan(lo[0], hi[0], color=STYLE[policy]["color"], alpha=0.15)
-                continue
-            x = np.array([r[x_key] for r in rs]) * x_scale
-            ax.errorbar(x, y, yerr=np.stack([y - lo, hi - y]), capsize=3, label=LABEL[policy], **STYLE[policy])
-    n = rows[0]["episodes"]
-    for ax, ylabel in zip(axes, ("mean PSNR (dB)", "devices covered (of N)", "arrival rate")):
-        ax.set(xlabel=xlabel, ylabel=ylabel)
-        ax.grid(alpha=0.3)
-    axes[0].set_title(title)
-    axes[1].set_title(f"error bars: 95 % CI over {n} layouts (arrival: Wilson)")
-    axes[0].legend()
+def fig2a(r: dict, path):
+    """Mean PSNR vs B (left) and devices covered (right): the agent with its t interval across seeds, the
+    baselines at 8.9 m/s and at v_b*, the planner (95 % t intervals over layouts)."""
+    rows = r["panel_a"]
+    B = np.array([row["B"] for row in rows]) / 1e3
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.2), gridspec_kw={"width_ratios": [3, 2]})
+    for name, st in STYLE.items():
+        if name == "agent":
+            y = np.array([row["agent"][0] for row in rows])
+            e = np.array([row["agent"][1] for row in rows])
+            cov = [row["agent_coverage"] for row in rows]
+        else:
+            y = np.array([row[name]["mean_psnr"][0] for row in rows])
+            e = np.array([row[name]["mean_psnr"][1] for row in rows])
+            cov = [row[name]["coverage"] for row in rows]
+        ax.errorbar(B, y, yerr=e, capsize=3, **st)
+        ax2.plot(B, cov, **{k: v for k, v in st.items() if k != "label"})
+    ax.set(xlabel="device bandwidth B (kHz)", ylabel="mean PSNR over the N devices (dB)",
+           title=f"(a) {r['layouts']} test layouts; DDQN: {r['seeds']} seeds, CI across seeds")
+    ax2.set(xlabel="device bandwidth B (kHz)", ylabel="devices covered (of N = 10)", title="coverage")
+    for a in (ax, ax2):
+        a.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
     save_figure(fig, path)
 
 
-def fig2a(rows, path):
-    _panel(rows, "a", "bandwidth_hz", 1e-3, "device bandwidth B (kHz)", "(a) baselines at 8.9 m/s", path)
+def fig2b(r: dict, path):
+    """At B = 25 kHz: greedy and TSP vs their speed (PSNR left, arrival right); the agent and the planner,
+    which set their own speeds, as bands."""
+    v = np.array(r["velocities"])
+    row = next(row for row in r["panel_a"] if row["B"] == 25e3)
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.2), gridspec_kw={"width_ratios": [3, 2]})
+    for name in ("agent", "planner"):
+        m, e = row["agent"] if name == "agent" else row[name]["mean_psnr"]
+        ax.axhline(m, color=STYLE[name]["color"], label=STYLE[name]["label"] + " (own speed)")
+        ax.axhspan(m - e, m + e, color=STYLE[name]["color"], alpha=0.15)
+    n = None
+    for name in ("greedy", "tsp"):
+        p = r["panel_b"][name]
+        y = np.array([x[0] for x in p["mean_psnr"]])
+        e = np.array([x[1] for x in p["mean_psnr"]])
+        st = STYLE[f"{name} v_b*"]
+        ax.errorbar(v, y, yerr=e, capsize=3, color=st["color"], marker=st["marker"], label=name.replace("tsp", "TSP"))
+        arr = np.array(p["arrived"])
+        n = p["episodes"]
+        lo, hi = wilson_interval(arr, n)
+        yerr = np.clip(np.stack([arr - lo, hi - arr]), 0.0, None)
+        ax2.errorbar(v, arr, yerr=yerr, capsize=3, color=st["color"], marker=st["marker"])
+    ax.axvline(8.9, color="0.5", ls=":", lw=1)
+    ax.set(xlabel="baseline speed v_b (m/s)", ylabel="mean PSNR (dB)", title="(b) B = 25 kHz (dotted: the paper's 8.9 m/s)")
+    ax2.set(xlabel="baseline speed v_b (m/s)", ylabel="arrival rate", ylim=(min(0.9, ax2.get_ylim()[0]), 1.005),
+            title=f"arrival, Wilson 95 % intervals over {n} layouts")
+    for a in (ax, ax2):
+        a.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="lower center")
+    save_figure(fig, path)
 
 
-def fig2b(rows, path, bandwidth):
-    _panel(rows, "b", "v_b", 1.0, "baseline speed v_b (m/s)", f"(b) B = {bandwidth / 1e3:g} kHz", path,
-           hline_ddqn=True)
-
-
-def fig2c(traj: dict, params, path):
-    """Trajectories on the paper layout: devices with their coverage disc, BS, start and destination."""
-    fig, ax = plt.subplots(figsize=(9, 5.8))
+def fig2c(paths: dict, params, path):
+    """Trajectories on the paper layout, one panel per policy: the path coloured by speed, each device's
+    seconds in range written beside it and drawn as a ring whose size grows with them."""
+    names = [n for n in ("agent", "greedy v_b*", "tsp v_b*", "planner") if n in paths]
+    fig, axes = plt.subplots(2, 2, figsize=(12, 7.6), sharex=True, sharey=True)
     radius = float(np.sqrt(float(params.D_com) ** 2 - float(params.H) ** 2))
-    for i, p in enumerate(np.asarray(params.device_pos)):
-        ax.add_patch(plt.Circle(p, radius, color="0.8", zorder=0))
-        ax.annotate(str(i), p, ha="center", va="center", fontsize=8)
-    ax.plot(*np.asarray(params.bs_pos), "k^", ms=10, label="BS")
-    ax.plot(*np.asarray(params.q0), "ko", ms=7, label="start q0")
-    ax.add_patch(plt.Circle(np.asarray(params.q_fin), float(params.r_arr), color="k", fill=False))
-    ax.plot(*np.asarray(params.q_fin), "k*", ms=12, label="destination")
-    for name, t in traj.items():
-        ax.plot(t["q"][:, 0], t["q"][:, 1], color=STYLE[name]["color"], lw=1.6,
-                label=f"{LABEL[name]}: {t['mean_psnr']:.1f} dB, {t['coverage']:.0f} covered, {t['mission_time']:.0f} s")
-    # the UAV may leave the area (no wall, docs/model.md eq. 3.3): the view holds the area and every path
-    pts = np.concatenate([np.array([[0.0, 0.0], [float(params.Lx), float(params.Ly)]])] + [t["q"] for t in traj.values()])
-    lo, hi = pts.min(0) - 10.0, pts.max(0) + 10.0
-    ax.add_patch(plt.Rectangle((0, 0), float(params.Lx), float(params.Ly), fill=False, ls=":", color="0.5"))
-    ax.set(xlim=(lo[0], hi[0]), ylim=(lo[1], hi[1]), xlabel="x (m)", ylabel="y (m)", aspect="equal",
-           title=f"(c) trajectories on the paper layout, B = {float(params.B) / 1e3:g} kHz "
-                 f"(grey: {radius:.0f} m coverage discs)")
-    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    save_figure(fig, path)
-
-
-def training_curves(agents, path):
-    """Mean PSNR of finished training episodes (epsilon-greedy) per chunk, one line per bandwidth."""
-    c = agents.curves
-    fig, axes = plt.subplots(1, 2, figsize=(11, 3.8))
-    for i, b in enumerate(agents.bandwidths):
-        axes[0].plot(c["env_steps"][i], c["mean_psnr"][i], label=f"B = {b / 1e3:g} kHz")
-        axes[1].plot(c["env_steps"][i], c["return"][i])
-    axes[0].set(xlabel="environment steps", ylabel="mean PSNR of finished episodes (dB)", title="DDQN training")
-    axes[1].set(xlabel="environment steps", ylabel="episode return")
-    axes[0].legend(fontsize=8)
-    save_figure(fig, path)
+    pts = np.concatenate([np.array([[0.0, 0.0], [float(params.Lx), float(params.Ly)]])] + [paths[n]["q"] for n in names])
+    lo, hi = pts.min(0) - 10.0, pts.max(0) + 10.0  # the UAV may leave the area (docs/model.md eq. 3.3)
+    norm = plt.Normalize(0.0, float(params.v_max))
+    for ax, name in zip(axes.ravel(), names):
+        p = {k: np.asarray(v) if isinstance(v, list) else v for k, v in paths[name].items()}
+        for i, d in enumerate(np.asarray(params.device_pos)):
+            ax.add_patch(plt.Circle(d, radius, color="0.88", zorder=0))
+            if p["dwell_s"][i] > 0:
+                ax.scatter(*d, s=20 + 12 * p["dwell_s"][i], facecolors="none", edgecolors="k", lw=0.8, zorder=3)
+                ax.annotate(f"{p['dwell_s'][i]:.0f} s", d, xytext=(6, 6), textcoords="offset points", fontsize=7)
+            else:
+                ax.plot(*d, "x", color="0.4", ms=5)
+        ax.add_patch(plt.Rectangle((0, 0), float(params.Lx), float(params.Ly), fill=False, ls=":", color="0.5"))
+        seg = np.stack([p["q"][:-1], p["q"][1:]], axis=1)
+        lc = LineCollection(seg, cmap="viridis", norm=norm, lw=2.2)
+        lc.set_array(p["speed"][1:])
+        ax.add_collection(lc)
+        ax.plot(*np.asarray(params.q0), "ko", ms=5)
+        ax.plot(*np.asarray(params.q_fin), "k*", ms=10)
+        ax.set_title(f"{STYLE[name]['label']}: {p['mean_psnr']:.1f} dB, {p['coverage']:.0f} covered, "
+                     f"{p['mission_time']:.0f} s", fontsize=9)
+        ax.set(xlim=(lo[0], hi[0]), ylim=(lo[1], hi[1]), aspect="equal")
+    for ax in axes[-1]:
+        ax.set_xlabel("x (m)")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("y (m)")
+    fig.colorbar(lc, ax=axes, shrink=0.8, label="speed (m/s)")
+    fig.suptitle(f"(c) paper layout, B = {float(params.B) / 1e3:g} kHz: rings and labels give the seconds in range "
+                 f"of each served device ({radius:.0f} m discs; x: not served)", fontsize=10)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    atomic_write(path, buf.getvalue())

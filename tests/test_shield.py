@@ -9,7 +9,7 @@ import pytest
 
 from semuav_jax.actions import action_to_accel
 from semuav_jax.agents.ddqn import DDQNConfig, make_train
-from semuav_jax.agents.shield import airspace_action, home_action, home_speed, shield
+from semuav_jax.agents.shield import home_action, home_speed, shield
 from semuav_jax.control import time_home
 from semuav_jax.env import reset_state
 from semuav_jax.rollout import episode

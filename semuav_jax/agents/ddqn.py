@@ -129,9 +129,9 @@ PRESETS = {
     "default": {},
     # the paper's configuration (MODEL.md section 6, PAPER_CLAIMS.md): paper reward with the shield, lr 5e-5,
     # MLP 128-128-64, the 9 accelerations, the raw observation, 1-step targets, trained at one bandwidth
-    "paper": {"reward_mode": "paper", "actions": "table", "sorted_devices": False, "lr": 5e-5, "hidden": (128, 128, 64),
+    "paper": {"reward_mode": "paper", "r_g": 500.0, "actions": "table", "sorted_devices": False, "lr": 5e-5, "hidden": (128, 128, 64),
               "n_step": 1, "gamma": 0.999, "bandwidth_range": None},
-}  # DDQNConfig overrides, plus the scenario's reward_mode
+}  # DDQNConfig overrides, plus the scenario's reward_mode and arrival reward r_g
 
 
 def preset_config(name: str, **overrides) -> DDQNConfig:

@@ -103,3 +103,56 @@ def markdown(r: dict) -> str:
             lines.append(f"| {row['B'] / 1e3:g} | {name} | {v} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | "
                          f"{s['coverage']:.2f} | {100 * s['arrived']:.1f} % |")
     return "\n".join(lines)
+
+
+def evaluate_run(folder, episodes: int = 1000, validation_episodes: int = 500, workers: int = 2, log=print,
+                 extra: dict | None = None) -> dict:
+    """:func:`compare` for the seeds of a finished ``train.py`` run folder; writes its eval.json and eval.md."""
+    import json
+    from pathlib import Path
+
+    from semuav_jax.agents.ddqn import make_train
+    from semuav_jax.agents.runs import EVAL_FILE, EVAL_MD, load_run
+    from semuav_jax.agents.scenarios import scenario_params
+    from semuav_jax.curves import load_curves, synthetic_curves
+    from semuav_jax.io import atomic_write
+    from semuav_jax.provenance import provenance
+
+    run, config, nets = load_run(folder)
+    source = run.get("curves")
+    curves = synthetic_curves() if source == "synthetic" else load_curves(source) if source else None
+    params = scenario_params(run["scenario"], curves, reward_mode=run["reward_mode"], B=run["bandwidth"],
+                             kappa_c=run["kappa_c"], r_g=run.get("r_g", 500.0))
+    network = make_train(config, params).network
+    bandwidths = BANDWIDTHS if config.bandwidth_range is not None else (run["bandwidth"],)
+    r = compare(network, nets, config, params, bandwidths, episodes, validation_episodes, workers, log=log)
+    r.update(agent_command=run.get("command"), **(extra or {}), **provenance(params))
+    atomic_write(Path(folder) / EVAL_FILE, json.dumps(r, indent=2).encode())
+    atomic_write(Path(folder) / EVAL_MD, (markdown(r) + "\n").encode())
+    return r
+
+
+def main(argv=None) -> int:
+    """``python -m semuav_jax.experiments.learned RUN``: (re)write RUN/eval.json and eval.md."""
+    import argparse
+    import sys
+
+    ap = argparse.ArgumentParser(description="Compare a train.py run's seeds with the tuned baselines and the planner.")
+    ap.add_argument("run", help="a finished train.py run folder")
+    ap.add_argument("--episodes", type=int, default=1000, help="test layouts (default: %(default)s)")
+    ap.add_argument("--validation-episodes", type=int, default=500, help="layouts that choose v_b* (default: %(default)s)")
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args(argv)
+    if min(args.episodes, args.validation_episodes, args.workers) < 1:
+        ap.error("--episodes, --validation-episodes and --workers must be >= 1")
+    try:
+        r = evaluate_run(args.run, args.episodes, args.validation_episodes, args.workers)
+    except (ValueError, KeyError, OSError) as e:
+        print(f"learned: error: {e}", file=sys.stderr)
+        return 2
+    print(markdown(r))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,198 @@
+"""The paper's Fig. 2 from the seeds of one bandwidth-conditioned agent and the references
+(docs/RESULTS.md).
+
+(a) mean PSNR vs the devices' bandwidth B: the agent (mean over seeds, t interval across seeds),
+greedy and TSP at the paper's 8.9 m/s and at their tuned speed v_b*, the offline planner;
+(b) at B = 25 kHz: greedy and TSP vs their speed v_b, with arrival; the agent and the planner as bands;
+(c) the paper layout at B = 25 kHz: the trajectories of the agent, greedy and TSP at v_b* and the
+planner, coloured by speed, with each device's dwell.
+
+Every point uses the same test layouts (``keys.TEST_SEED``); v_b* is chosen on validation layouts
+(``keys.VALIDATION_SEED``). :func:`behaviour` measures what explains the numbers: speed while
+transmitting and otherwise, dwell and symbols per served device, devices covered.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from baselines import DEFAULT_V_B, init_state, sweep, tsp_ranks
+from baselines.planner import make_plans, planner
+from baselines.policies import POLICIES
+from baselines.report import flights, tune
+from semuav_jax.agents.ddqn import DDQNConfig
+from semuav_jax.agents.evaluate import agent_state, greedy_policy
+from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
+from semuav_jax.params import EnvParams
+from semuav_jax.rollout import rollout
+from semuav_jax.sharding import shard_episodes
+from semuav_jax.stats import mean_ci
+
+BANDWIDTHS = (5e3, 10e3, 15e3, 20e3, 25e3, 30e3, 35e3, 40e3)
+VELOCITIES = (4.0, 6.0, DEFAULT_V_B, 11.0, 14.0, 17.0, 20.0, 24.0)
+PANEL_B = 25e3
+FULL = {"bandwidths": BANDWIDTHS, "velocities": VELOCITIES, "layouts": 1000, "validation_layouts": 500}
+QUICK = {"bandwidths": (5e3, 20e3, 25e3, 40e3), "velocities": (4.0, DEFAULT_V_B, 16.0, 24.0), "layouts": 300,
+         "validation_layouts": 100}
+
+
+def agent_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams, bandwidths) -> dict:
+    """Per-episode metrics (seeds, len(bandwidths), E) of each seed's greedy policy at each B, one program."""
+    E = len(keys)
+    skeys = shard_episodes(keys)
+    policy = greedy_policy(network, config)
+
+    def at(net, b):
+        return rollout(policy, skeys, params.replace(B=b), agent_state(net), state_axes=None)[0]
+
+    out = jax.jit(jax.vmap(jax.vmap(at, (None, 0)), (0, None)))(nets, jnp.asarray(bandwidths, jnp.float32))
+    return {k: np.asarray(v)[..., :E] for k, v in out.items()}
+
+
+def behaviour(trace: dict, params: EnvParams) -> dict:
+    """Per-episode quantities (E,) of a traced rollout that explain its PSNR: mean speed in the slots
+    with some device transmitting and in the others (m/s), dwell (s in range) and symbols (share of M)
+    per served device, devices covered, mission time."""
+    v = np.linalg.norm(np.asarray(trace["v"]), axis=-1)  # (E, K)
+    done = np.asarray(trace["done"])
+    live = np.concatenate([np.ones_like(done[:, :1]), ~done[:, :-1]], axis=1)
+    x = np.asarray(trace["x"])  # (E, K, N)
+    tx = x.any(-1) & live
+    idle = ~x.any(-1) & live
+    m = np.asarray(trace["m"])[:, -1]  # (E, N) symbols at the end
+    served = m > 0
+    dwell = (x & live[..., None]).sum(1) * float(params.tau)
+    n_served = np.maximum(served.sum(-1), 1)
+    return {
+        "speed_transmitting": (v * tx).sum(1) / np.maximum(tx.sum(1), 1),
+        "speed_otherwise": (v * idle).sum(1) / np.maximum(idle.sum(1), 1),
+        "dwell_per_served_s": (dwell * served).sum(-1) / n_served,
+        "symbols_per_served": (m / params.M * served).sum(-1) / n_served,
+        "coverage": served.sum(-1).astype(float),
+        "mission_time_s": live.sum(1) * float(params.tau),
+    }
+
+
+def summarize(per_episode: dict) -> dict:
+    """Mean and t half-width (95 %) of every per-episode quantity."""
+    return {k: mean_ci(v) for k, v in per_episode.items()}
+
+
+def traced_runs(network, nets, config: DDQNConfig, keys, params: EnvParams, tuned_speeds: dict, workers: int = 2):
+    """Traced rollouts at ``params.B``: each agent seed, greedy and TSP at 8.9 m/s and at v_b*
+    (``tuned_speeds``: name -> v_b*) and the planner. Returns {name: (metrics, trace)}."""
+    runs = {}
+    for s in range(jax.tree.leaves(nets)[0].shape[0]):
+        net = jax.tree.map(lambda x: x[s], nets)
+        runs[f"agent seed {s}"] = rollout(greedy_policy(network, config), keys, params, agent_state(net), trace=True,
+                                          state_axes=None)
+    ranks = {"greedy": np.broadcast_to(np.arange(params.N, dtype=np.int32), (len(keys), params.N)),
+             "tsp": tsp_ranks(keys, params, workers=workers)}
+    for name in ("greedy", "tsp"):
+        for label, v in ((f"{name} {DEFAULT_V_B:g}", DEFAULT_V_B), (f"{name} v_b*", tuned_speeds[name])):
+            states = jax.vmap(init_state, (None, 0))(jnp.float32(v), jnp.asarray(ranks[name]))
+            runs[label] = rollout(POLICIES[name], keys, params, states, trace=True)
+    runs["planner"] = rollout(planner, keys, params, make_plans(keys, params, workers=workers), trace=True)
+    return {k: jax.tree.map(np.asarray, v) for k, v in runs.items()}
+
+
+def path(trace: dict, metrics: dict, i: int, params: EnvParams) -> dict:
+    """Episode i of a traced run as drawn in panel (c): positions (slots + 1, 2) from q0, speeds,
+    seconds in range of each device, and the final metrics."""
+    slots = int(round(float(metrics["mission_time"][i]) / float(params.tau)))
+    q = np.concatenate([np.asarray(params.q0)[None], trace["q"][i, :slots]])
+    v = np.concatenate([[0.0], np.linalg.norm(trace["v"][i, :slots], axis=-1)])
+    dwell = trace["x"][i, :slots].sum(0) * float(params.tau)
+    return {"q": q, "speed": v, "dwell_s": dwell, **{k: float(np.asarray(m)[i]) for k, m in metrics.items()}}
+
+
+def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, grid: dict, workers: int = 2,
+        log=print) -> dict:
+    """Every number and path of Fig. 2 (JSON-ready except the paths' arrays)."""
+    bandwidths, velocities = tuple(grid["bandwidths"]), tuple(grid["velocities"])
+    sweep_B = tuple(sorted(set(bandwidths) | {PANEL_B}))
+    keys = episode_keys(TEST_SEED, grid["layouts"])
+    tuned = tune(params, sweep_B, grid["validation_layouts"], workers=workers)
+    log("v_b* on validation layouts: " + ", ".join(f"{n} {tuned[n]['v_star']}" for n in ("greedy", "tsp")))
+    refs = flights(params, keys, tuned, sweep_B, workers)
+    log("references flown (greedy, TSP at 8.9 m/s and v_b*; planner)")
+    agent = agent_metrics(network, nets, config, keys, params, sweep_B)
+    log("agent evaluated")
+    out = {"layouts": len(keys), "test_seed": TEST_SEED, "validation_seed": VALIDATION_SEED,
+           "validation_layouts": grid["validation_layouts"], "tuning": tuned, "bandwidths": list(sweep_B),
+           "velocities": list(velocities), "seeds": int(agent["mean_psnr"].shape[0]), "panel_a": [], "panel_b": {}}
+    for j, b in enumerate(sweep_B):
+        row = {"B": b, "agent_seeds": [float(x) for x in agent["mean_psnr"][:, j].mean(-1)]}
+        row["agent"] = mean_ci(row["agent_seeds"])
+        row["agent_coverage"] = float(agent["coverage"][:, j].mean())
+        row["agent_arrived"] = float(agent["arrived"][:, j].mean())
+        row["agent_shield_share"] = float(agent["shield_share"][:, j].mean())
+        for name, m in refs[j].items():
+            row[name] = {"v_b": m["v_b"], "mean_psnr": mean_ci(m["mean_psnr"]), "coverage": float(np.mean(m["coverage"])),
+                         "arrived": float(np.mean(m["arrived"]))}
+            row[f"agent minus {name}"] = mean_ci([mean_ci(agent["mean_psnr"][s, j] - m["mean_psnr"])[0]
+                                                  for s in range(out["seeds"])])
+        out["panel_a"].append(row)
+    pb = params.replace(B=PANEL_B)
+    rank = tsp_ranks(keys, pb, workers=workers)
+    for name in ("greedy", "tsp"):
+        m = sweep(name, keys, pb, v_b=velocities, B=(PANEL_B,), rank=rank if name == "tsp" else None)
+        per = lambda k: [m[k][0, i] for i in range(len(velocities))]
+        out["panel_b"][name] = {
+            "mean_psnr": [mean_ci(x) for x in per("mean_psnr")],
+            "arrived": [float(x.mean()) for x in per("arrived")],
+            "coverage": [float(x.mean()) for x in per("coverage")],
+            # mean share of M received by a covered device
+            "symbols_per_covered": [float((f * pb.N).sum() / max(c.sum(), 1)) for f, c in
+                                    zip(per("symbol_fraction"), per("coverage"))],
+            "episodes": len(keys)}
+    log("panel (b) swept")
+    out["behaviour"] = {}
+    for b in sorted({min(sweep_B), PANEL_B}):
+        ib = sweep_B.index(b)
+        tuned_at_b = {n: tuned[n]["v_star"][ib] for n in ("greedy", "tsp")}
+        at_b = params.replace(B=b)
+        runs = traced_runs(network, nets, config, keys, at_b, tuned_at_b, workers)
+        out["behaviour"][f"{b / 1e3:g} kHz"] = {name: summarize(behaviour(tr, at_b)) for name, (_, tr) in runs.items()}
+    log(f"behaviour measured at {min(sweep_B) / 1e3:g} and {PANEL_B / 1e3:g} kHz")
+    pf = fixed.replace(B=PANEL_B)
+    one = episode_keys(TEST_SEED, 1)
+    paths = traced_runs(network, jax.tree.map(lambda x: x[:1], nets), config, one, pf, tuned_at_b, workers=1)
+    out["paths"] = {name.replace(" seed 0", ""): path(tr, m, 0, pf) for name, (m, tr) in paths.items()
+                    if not name.endswith(f"{DEFAULT_V_B:g}")}
+    return out
+
+
+def markdown(r: dict) -> str:
+    """The tables of docs/RESULTS.md: panel (a) with the agent's margins, panel (b), and the behaviour at 25 kHz."""
+    refs = ("greedy 8.9", "tsp 8.9", "greedy v_b*", "tsp v_b*", "planner")
+    lines = [f"{r['layouts']} test layouts (seed {r['test_seed']}); DDQN: mean of {r['seeds']} seeds ± t interval "
+             f"across seeds; references ± 95 % interval over layouts; v_b* from {r['validation_layouts']} validation "
+             f"layouts (seed {r['validation_seed']}).", "",
+             "| B (kHz) | DDQN (dB) | " + " | ".join(refs) + " | DDQN − greedy v_b* | DDQN − TSP v_b* | DDQN − planner |",
+             "|---" * (5 + len(refs)) + "|"]
+    for row in r["panel_a"]:
+        cells = [f"{row[n]['mean_psnr'][0]:.2f}" + (f" ({row[n]['v_b']:g} m/s)" if "v_b*" in n else "") for n in refs]
+        margins = [f"{row[f'agent minus {n}'][0]:+.2f} ± {row[f'agent minus {n}'][1]:.2f}" for n in ("greedy v_b*", "tsp v_b*", "planner")]
+        lines.append(f"| {row['B'] / 1e3:g} | {row['agent'][0]:.2f} ± {row['agent'][1]:.2f} | " + " | ".join(cells + margins) + " |")
+    lines += ["", "Arrival: " + ", ".join(f"{row['B'] / 1e3:g} kHz DDQN {100 * row['agent_arrived']:.1f} % "
+                                         f"(shield {100 * row['agent_shield_share']:.1f} % of slots)" for row in r["panel_a"]), "",
+              "| v_b (m/s), B = 25 kHz | " + " | ".join(f"{v:g}" for v in r["velocities"]) + " |",
+              "|---" * (1 + len(r["velocities"])) + "|"]
+    for name, p in r["panel_b"].items():
+        lines.append(f"| {name} PSNR (dB) | " + " | ".join(f"{m:.2f}" for m, _ in p["mean_psnr"]) + " |")
+        lines.append(f"| {name} arrival | " + " | ".join(f"{100 * a:.1f} %" for a in p["arrived"]) + " |")
+        lines.append(f"| {name} coverage | " + " | ".join(f"{c:.2f}" for c in p["coverage"]) + " |")
+        lines.append(f"| {name} symbols per covered device (share of M) | "
+                     + " | ".join(f"{c:.2f}" for c in p["symbols_per_covered"]) + " |")
+    keys = ("speed_transmitting", "speed_otherwise", "dwell_per_served_s", "symbols_per_served", "coverage", "mission_time_s")
+    for where, rows in r["behaviour"].items():
+        lines += ["", f"Behaviour at B = {where} (means over the test layouts):", "",
+                  "| policy | speed while a device transmits (m/s) | speed otherwise (m/s) | seconds in range per "
+                  "served device | symbols per served device (share of M) | devices covered | mission time (s) |",
+                  "|---" * 7 + "|"]
+        for name, b in rows.items():
+            lines.append(f"| {name} | " + " | ".join(f"{b[k][0]:.2f}" for k in keys) + " |")
+    return "\n".join(lines)

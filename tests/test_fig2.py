@@ -1,0 +1,99 @@
+"""Fig. 2's pipeline (semuav_jax/experiments/fig2.py, eval.py): behaviour measures by hand, properties
+of a reduced run, determinism, and the same numbers with 1 and 2 JAX host devices."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import jax
+import numpy as np
+import pytest
+
+from semuav_jax.agents.ddqn import DDQNConfig, make_train
+from semuav_jax.agents.scenarios import scenario_params
+from semuav_jax.experiments import fig2
+
+ROOT = Path(__file__).resolve().parents[1]
+GRID = {"bandwidths": (5e3, 25e3), "velocities": (8.9, 16.0), "layouts": 12, "validation_layouts": 6}
+
+
+def test_behaviour_by_hand(params):
+    # one episode of 4 slots, 2 devices; it ends (done) in slot 3, so slot 4 is not live
+    v = np.array([[[3.0, 4.0], [6.0, 8.0], [0.0, 1.0], [9.0, 9.0]]])  # speeds 5, 10, 1, (dead)
+    x = np.array([[[True, False], [True, False], [False, False], [True, True]]])
+    m = np.zeros((1, 4, 2))
+    m[0, -1] = [params.M / 2, 0.0]
+    done = np.array([[False, False, True, True]])
+    b = fig2.behaviour({"v": v, "x": x, "m": m, "done": done}, params)
+    assert b["speed_transmitting"][0] == pytest.approx(7.5)  # slots 1-2
+    assert b["speed_otherwise"][0] == pytest.approx(1.0)  # slot 3
+    assert b["dwell_per_served_s"][0] == pytest.approx(2 * 0.5)  # device 0: two live slots in range
+    assert b["symbols_per_served"][0] == pytest.approx(0.5)
+    assert b["coverage"][0] == 1 and b["mission_time_s"][0] == pytest.approx(1.5)
+
+
+@pytest.fixture(scope="module")
+def reduced(curves):
+    params = scenario_params("random", curves, reward_mode="gain")
+    fixed = scenario_params("fixed", curves, reward_mode="gain")
+    config = DDQNConfig(num_envs=4, total_steps=4 * 250, learning_starts=64, batch_size=16, buffer_size=500)
+    tr = make_train(config, params)
+    nets = jax.vmap(tr.init)(jax.random.split(jax.random.key(0), 2)).params  # two untrained seeds
+    run = lambda: fig2.run(tr.network, nets, config, params, fixed, GRID, workers=1, log=lambda m: None)
+    return params, run(), run()
+
+
+def test_reduced_run_properties(reduced):
+    params, r, _ = reduced
+    assert [row["B"] for row in r["panel_a"]] == [5e3, 25e3] and r["seeds"] == 2
+    for row in r["panel_a"]:
+        assert row["agent_arrived"] == 1.0  # the shield brings even an untrained agent home
+        for name in ("greedy 8.9", "tsp 8.9", "greedy v_b*", "tsp v_b*", "planner"):
+            assert row[name]["arrived"] >= 0.99, name
+        assert row["planner"]["mean_psnr"][0] > row["greedy 8.9"]["mean_psnr"][0]
+    assert set(r["behaviour"]) == {"5 kHz", "25 kHz"}
+    for name, b in r["behaviour"]["25 kHz"].items():
+        assert 0 <= b["speed_transmitting"][0] <= params.v_max + 1e-3, name
+        assert 0 <= b["symbols_per_served"][0] <= 1 and b["dwell_per_served_s"][0] >= 0
+    for p in r["panel_b"].values():
+        assert all(0 <= s <= 1 for s in p["symbols_per_covered"]) and len(p["coverage"]) == 2
+    assert set(r["paths"]) == {"agent", "greedy v_b*", "tsp v_b*", "planner"}
+    for p in r["paths"].values():
+        np.testing.assert_array_equal(p["q"][0], [0.0, 300.0])
+        assert len(p["q"]) == round(p["mission_time"] / 0.5) + 1
+    text = fig2.markdown({**r, "paths": None})
+    assert "DDQN − greedy v_b*" in text and "speed while a device transmits" in text
+
+
+def test_identical_under_fixed_keys(reduced):
+    _, a, b = reduced
+    a, b = ({k: v for k, v in x.items() if k != "paths"} for x in (a, b))
+    assert json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
+
+
+def test_figures(reduced, tmp_path):
+    from semuav_jax import figures
+
+    params, r, _ = reduced
+    figures.fig2a(r, tmp_path / "a.png")
+    figures.fig2b(r, tmp_path / "b.png")
+    figures.fig2c(r["paths"], scenario_params("fixed").replace(B=25e3), tmp_path / "c.png")
+    for f in ("a", "b", "c"):
+        assert (tmp_path / f"{f}.png").stat().st_size > 10_000
+
+
+def _quick(out, devices):
+    env = {**os.environ, "XLA_FLAGS": f"--xla_force_host_platform_device_count={devices}"}
+    cmd = [sys.executable, str(ROOT / "eval.py"), "--quick", "--out", str(out), "--layouts", "6",
+           "--validation-layouts", "4", "--bandwidths", "25000", "--velocities", "8.9", "--workers", "1"]
+    res = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, env=env)
+    assert res.returncode == 0, res.stderr
+    r = json.loads((out / "fig2.json").read_text())
+    assert r["devices"] == devices
+    return {k: v for k, v in r.items() if k not in ("devices", "train_s", "eval_s")}
+
+
+def test_quick_is_the_same_with_1_and_2_host_devices(tmp_path):
+    assert _quick(tmp_path / "one", 1) == _quick(tmp_path / "two", 2)

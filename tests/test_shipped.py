@@ -1,0 +1,39 @@
+"""The shipped agent (semuav_jax/data/agent) is the output of ``python train.py`` and its recorded
+evaluation reproduces here."""
+
+import numpy as np
+
+from semuav_jax.agents.ddqn import DDQNConfig, make_train
+from semuav_jax.agents.evaluate import evaluate_agent
+from semuav_jax.agents.runs import EVAL_FILE, load_shipped, shipped_folder
+from semuav_jax.agents.scenarios import scenario_params
+from semuav_jax.curves import load_curves
+from semuav_jax.keys import TEST_SEED, episode_keys
+from semuav_jax.provenance import curves_hash
+
+
+def test_shipped_agent_is_the_default_command():
+    import json
+
+    run, config, nets = load_shipped()
+    assert run["command"] == "python train.py" and config == DDQNConfig()
+    assert run["curves"] is None and np.asarray(nets["params"]["Dense_0"]["kernel"]).shape[0] == run["seeds"] == 3
+    ev = json.loads((shipped_folder() / EVAL_FILE).read_text())
+    assert ev["curves_sha256"] == curves_hash(load_curves().C) and ev["test_seed"] == TEST_SEED
+    assert len(ev["commit"].split("+")[0]) == 40
+
+
+def test_recorded_evaluation_reproduces():
+    """Every seed's mean PSNR at 25 kHz on the recorded test layouts, within its recorded 95 % CI."""
+    import json
+
+    run, config, nets = load_shipped()
+    ev = json.loads((shipped_folder() / EVAL_FILE).read_text())
+    row = next(r for r in ev["rows"] if r["B"] == 25e3)
+    params = scenario_params("random", reward_mode=run["reward_mode"], B=25e3, kappa_c=run["kappa_c"])
+    network = make_train(config, params).network
+    keys = episode_keys(TEST_SEED, ev["episodes"])
+    for s, recorded in enumerate(row["seeds"]):
+        net = {"params": {k: {n: w[s] for n, w in layer.items()} for k, layer in nets["params"].items()}}
+        m = evaluate_agent(network, net, config, keys, params)
+        assert abs(m["mean_psnr"].mean() - recorded["mean_psnr"]) <= recorded["ci95"], s
