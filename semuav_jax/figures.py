@@ -96,7 +96,7 @@ def fig2c(paths: dict, params, path):
     """Trajectories on the paper layout, one panel per policy: the path coloured by speed, each device's
     seconds in range written beside it and drawn as a ring whose size grows with them."""
     names = [n for n in ("agent", "greedy v_b*", "tsp v_b*", "planner") if n in paths]
-    fig, axes = plt.subplots(2, 2, figsize=(12, 7.6), sharex=True, sharey=True)
+    fig, axes = plt.subplots(2, 2, figsize=(12, 6.3), sharex=True, sharey=True)
     radius = float(np.sqrt(float(params.D_com) ** 2 - float(params.H) ** 2))
     pts = np.concatenate([np.array([[0.0, 0.0], [float(params.Lx), float(params.Ly)]])] + [paths[n]["q"] for n in names])
     lo, hi = pts.min(0) - 10.0, pts.max(0) + 10.0  # the UAV may leave the area (docs/model.md eq. 3.3)
@@ -117,7 +117,8 @@ def fig2c(paths: dict, params, path):
         ax.add_collection(lc)
         ax.plot(*np.asarray(params.q0), "ko", ms=5)
         ax.plot(*np.asarray(params.q_fin), "k*", ms=10)
-        ax.set_title(f"{STYLE[name]['label']}: {p['mean_psnr']:.1f} dB, {p['coverage']:.0f} covered, "
+        label = "DDQN (ours), seed 0" if name == "agent" else STYLE[name]["label"]
+        ax.set_title(f"{label}: {p['mean_psnr']:.1f} dB, {p['coverage']:.0f} covered, "
                      f"{p['mission_time']:.0f} s", fontsize=9)
         ax.set(xlim=(lo[0], hi[0]), ylim=(lo[1], hi[1]), aspect="equal")
     for ax in axes[-1]:
@@ -126,7 +127,7 @@ def fig2c(paths: dict, params, path):
         ax.set_ylabel("y (m)")
     fig.colorbar(lc, ax=axes, shrink=0.8, label="speed (m/s)")
     fig.suptitle(f"(c) paper layout, B = {float(params.B) / 1e3:g} kHz: rings and labels give the seconds in range "
-                 f"of each served device ({radius:.0f} m discs; x: not served)", fontsize=10)
+                 f"of each served device ({radius:.0f} m discs; x: not served)", fontsize=10, y=0.99)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
     plt.close(fig)

@@ -38,6 +38,8 @@ def test_defaults_match_model_md(params):
         ({"B": float("nan")}, "B"),
         ({"v_max": float("inf")}, "v_max"),
         ({"B": np.array([5e3, -1.0])}, "B"),
+        ({"airspace_margin": -1.0}, "airspace_margin"),
+        ({"airspace_margin": float("nan")}, "airspace_margin"),
     ],
 )
 def test_bad_parameter_names_itself(curves, override, name):

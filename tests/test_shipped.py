@@ -16,7 +16,7 @@ def test_shipped_agent_is_the_default_command():
     import json
 
     run, config, nets = load_shipped()
-    assert run["command"] == "python train.py" and config == DDQNConfig()
+    assert run["command"] == "python train.py" and config == DDQNConfig() and run["r_g"] == 0.0
     assert run["curves"] is None and np.asarray(nets["params"]["Dense_0"]["kernel"]).shape[0] == run["seeds"] == 3
     ev = json.loads((shipped_folder() / EVAL_FILE).read_text())
     assert ev["curves_sha256"] == curves_hash(load_curves().C) and ev["test_seed"] == TEST_SEED
