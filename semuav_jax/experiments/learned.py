@@ -9,6 +9,9 @@ its t interval. No seed is selected: every one is reported.
 
 from __future__ import annotations
 
+import dataclasses
+
+import jax
 import numpy as np
 
 from baselines.report import BANDWIDTHS, flights, summary, tune
@@ -23,8 +26,6 @@ REFERENCES = ("greedy v_b*", "tsp v_b*")  # the margins that must be positive
 
 def seed_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams) -> list[dict]:
     """Per-episode metrics of each seed's greedy policy (``nets`` has a leading seed axis)."""
-    import jax
-
     seeds = jax.tree.leaves(nets)[0].shape[0]
     return [evaluate_agent(network, jax.tree.map(lambda x: x[s], nets), config, keys, params) for s in range(seeds)]
 
@@ -32,8 +33,6 @@ def seed_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams) -> 
 def compare(network, nets, config: DDQNConfig, params: EnvParams, bandwidths=BANDWIDTHS, episodes: int = 1000,
             validation_episodes: int = 500, workers: int = 2, ablate_shield: bool = True, log=print) -> dict:
     """Every number of the table of docs/ddqn.md (JSON-ready) for the seeds ``nets`` of one agent."""
-    import dataclasses
-
     tuned = tune(params, bandwidths, validation_episodes, workers=workers)
     log("v_b* on validation layouts: " + ", ".join(f"{n} {tuned[n]['v_star']}" for n in ("greedy", "tsp")))
     keys = episode_keys(TEST_SEED, episodes)
