@@ -195,17 +195,11 @@ def main(argv=None) -> int:
     from tqdm import tqdm
 
     from semuav_jax.agents.ddqn import DDQNConfig, make_train
-    from semuav_jax.agents.scenarios import scenario_params
-    from semuav_jax.curves import load_curves, synthetic_curves
+    from semuav_jax.agents.runs import run_params
 
     out = Path(args.out)
     try:
-        if cfg["curves"] == "synthetic":
-            curves = synthetic_curves()
-        else:
-            curves = load_curves(cfg["curves"]) if cfg["curves"] else None
-        params = scenario_params(cfg["scenario"], curves, reward_mode=cfg["reward_mode"], B=cfg["bandwidth"],
-                                  kappa_c=cfg["kappa_c"], r_g=cfg.get("r_g", 500.0))
+        params = run_params(cfg)
         config = DDQNConfig.from_dict(cfg["ddqn"])
         prepare_folder(args, cfg)
     except (UsageError, ValueError, FileNotFoundError) as e:

@@ -45,10 +45,12 @@ def tune(params, bandwidths=BANDWIDTHS, episodes: int = 500, grid=SPEED_GRID, wo
     return out
 
 
-def flights(params, keys, tuned: dict, bandwidths=BANDWIDTHS, workers: int = 2) -> list[dict]:
+def flights(params, keys, tuned: dict, bandwidths=BANDWIDTHS, workers: int = 2, rank=None, plans=None) -> list[dict]:
     """Per-episode metrics (dicts of (E,) arrays) on ``keys`` at each bandwidth: greedy and TSP at
-    the paper's speed and at their tuned v_b* (``tuned`` from :func:`tune`), and the planner."""
-    rank = tsp_ranks(keys, params, workers=workers)
+    the paper's speed and at their tuned v_b* (``tuned`` from :func:`tune`), and the planner.
+    ``rank`` (TSP ranks of ``keys``) and ``plans`` (one PlanState per bandwidth) are solved here
+    unless given."""
+    rank = tsp_ranks(keys, params, workers=workers) if rank is None else rank
     speeds = sorted({DEFAULT_V_B, *[v for n in TUNED for v in tuned[n]["v_star"]]})
     swept = {n: sweep(n, keys, params, v_b=speeds, B=bandwidths, rank=rank) for n in TUNED}
     out = []
@@ -59,7 +61,7 @@ def flights(params, keys, tuned: dict, bandwidths=BANDWIDTHS, workers: int = 2) 
             for label, v in ((f"{n} {DEFAULT_V_B:g}", DEFAULT_V_B), (f"{n} v_b*", tuned[n]["v_star"][j])):
                 row[label] = {"v_b": v, **{k: x[j, speeds.index(v)] for k, x in swept[n].items()}}
         t1 = time.perf_counter()
-        plan = make_plans(keys, pb, workers=workers)
+        plan = make_plans(keys, pb, workers=workers) if plans is None else plans[j]
         row["planner"] = {"v_b": None, **{k: np.asarray(v) for k, v in run(planner, keys, pb, plan).items()},
                           "wall_s": time.perf_counter() - t1}
         out.append(row)

@@ -35,6 +35,18 @@ def load_run(folder):
     return run, DDQNConfig.from_dict(run["ddqn"]), serialization.msgpack_restore((folder / MODEL_FILE).read_bytes())
 
 
+def run_params(run: dict):
+    """The EnvParams a run was trained with, from its description (config.json): scenario, curves
+    (a file, 'synthetic', or None for the shipped ones), reward mode, B, kappa_c, r_g."""
+    from semuav_jax.agents.scenarios import scenario_params
+    from semuav_jax.curves import load_curves, synthetic_curves
+
+    source = run.get("curves")
+    curves = synthetic_curves() if source == "synthetic" else load_curves(source) if source else None
+    return scenario_params(run["scenario"], curves, reward_mode=run["reward_mode"], B=run["bandwidth"],
+                           kappa_c=run["kappa_c"], r_g=run.get("r_g", 500.0))
+
+
 def shipped_folder() -> Path:
     return Path(str(resources.files("semuav_jax") / "data" / SHIPPED))
 

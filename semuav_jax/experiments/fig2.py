@@ -80,21 +80,25 @@ def summarize(per_episode: dict) -> dict:
     return {k: mean_ci(v) for k, v in per_episode.items()}
 
 
-def traced_runs(network, nets, config: DDQNConfig, keys, params: EnvParams, tuned_speeds: dict, workers: int = 2):
+def traced_runs(network, nets, config: DDQNConfig, keys, params: EnvParams, tuned_speeds: dict, workers: int = 2,
+                rank=None, plan=None):
     """Traced rollouts at ``params.B``: each agent seed, greedy and TSP at 8.9 m/s and at v_b*
-    (``tuned_speeds``: name -> v_b*) and the planner. Returns {name: (metrics, trace)}."""
+    (``tuned_speeds``: name -> v_b*) and the planner. ``rank`` (TSP ranks of ``keys``) and ``plan``
+    (the planner's PlanState at ``params.B``) are solved here unless given.
+    Returns {name: (metrics, trace)}."""
     runs = {}
     for s in range(jax.tree.leaves(nets)[0].shape[0]):
         net = jax.tree.map(lambda x: x[s], nets)
         runs[f"agent seed {s}"] = rollout(greedy_policy(network, config), keys, params, agent_state(net), trace=True,
                                           state_axes=None)
     ranks = {"greedy": np.broadcast_to(np.arange(params.N, dtype=np.int32), (len(keys), params.N)),
-             "tsp": tsp_ranks(keys, params, workers=workers)}
+             "tsp": tsp_ranks(keys, params, workers=workers) if rank is None else rank}
     for name in ("greedy", "tsp"):
         for label, v in ((f"{name} {DEFAULT_V_B:g}", DEFAULT_V_B), (f"{name} v_b*", tuned_speeds[name])):
             states = jax.vmap(init_state, (None, 0))(jnp.float32(v), jnp.asarray(ranks[name]))
             runs[label] = rollout(POLICIES[name], keys, params, states, trace=True)
-    runs["planner"] = rollout(planner, keys, params, make_plans(keys, params, workers=workers), trace=True)
+    plan = make_plans(keys, params, workers=workers) if plan is None else plan
+    runs["planner"] = rollout(planner, keys, params, plan, trace=True)
     return {k: jax.tree.map(np.asarray, v) for k, v in runs.items()}
 
 
@@ -116,7 +120,9 @@ def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, 
     keys = episode_keys(TEST_SEED, grid["layouts"])
     tuned = tune(params, sweep_B, grid["validation_layouts"], workers=workers)
     log("v_b* on validation layouts: " + ", ".join(f"{n} {tuned[n]['v_star']}" for n in ("greedy", "tsp")))
-    refs = flights(params, keys, tuned, sweep_B, workers)
+    rank = tsp_ranks(keys, params, workers=workers)  # the TSP order does not depend on B: solved once
+    plans = [make_plans(keys, params.replace(B=b), workers=workers) for b in sweep_B]
+    refs = flights(params, keys, tuned, sweep_B, workers, rank=rank, plans=plans)
     log("references flown (greedy, TSP at 8.9 m/s and v_b*; planner)")
     agent = agent_metrics(network, nets, config, keys, params, sweep_B)
     log("agent evaluated")
@@ -136,7 +142,6 @@ def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, 
                                                   for s in range(out["seeds"])])
         out["panel_a"].append(row)
     pb = params.replace(B=PANEL_B)
-    rank = tsp_ranks(keys, pb, workers=workers)
     for name in ("greedy", "tsp"):
         m = sweep(name, keys, pb, v_b=velocities, B=(PANEL_B,), rank=rank if name == "tsp" else None)
         per = lambda k: [m[k][0, i] for i in range(len(velocities))]
@@ -154,7 +159,7 @@ def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, 
         ib = sweep_B.index(b)
         tuned_at_b = {n: tuned[n]["v_star"][ib] for n in ("greedy", "tsp")}
         at_b = params.replace(B=b)
-        runs = traced_runs(network, nets, config, keys, at_b, tuned_at_b, workers)
+        runs = traced_runs(network, nets, config, keys, at_b, tuned_at_b, workers, rank=rank, plan=plans[ib])
         out["behaviour"][f"{b / 1e3:g} kHz"] = {name: summarize(behaviour(tr, at_b)) for name, (_, tr) in runs.items()}
     log(f"behaviour measured at {min(sweep_B) / 1e3:g} and {PANEL_B / 1e3:g} kHz")
     pf = fixed.replace(B=PANEL_B)

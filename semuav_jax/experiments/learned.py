@@ -111,17 +111,12 @@ def evaluate_run(folder, episodes: int = 1000, validation_episodes: int = 500, w
     from pathlib import Path
 
     from semuav_jax.agents.ddqn import make_train
-    from semuav_jax.agents.runs import EVAL_FILE, EVAL_MD, load_run
-    from semuav_jax.agents.scenarios import scenario_params
-    from semuav_jax.curves import load_curves, synthetic_curves
+    from semuav_jax.agents.runs import EVAL_FILE, EVAL_MD, load_run, run_params
     from semuav_jax.io import atomic_write
     from semuav_jax.provenance import provenance
 
     run, config, nets = load_run(folder)
-    source = run.get("curves")
-    curves = synthetic_curves() if source == "synthetic" else load_curves(source) if source else None
-    params = scenario_params(run["scenario"], curves, reward_mode=run["reward_mode"], B=run["bandwidth"],
-                             kappa_c=run["kappa_c"], r_g=run.get("r_g", 500.0))
+    params = run_params(run)
     network = make_train(config, params).network
     bandwidths = BANDWIDTHS if config.bandwidth_range is not None else (run["bandwidth"],)
     r = compare(network, nets, config, params, bandwidths, episodes, validation_episodes, workers, log=log)
