@@ -4,7 +4,9 @@ evaluation reproduces here."""
 import numpy as np
 
 from semuav_jax.agents.ddqn import DDQNConfig, make_train
-from semuav_jax.agents.evaluate import evaluate_agent
+import jax
+
+from semuav_jax.agents.evaluate import evaluate_agent, seed_metrics
 from semuav_jax.agents.runs import EVAL_FILE, load_shipped, shipped_folder
 from semuav_jax.agents.scenarios import scenario_params
 from semuav_jax.curves import load_curves
@@ -33,7 +35,21 @@ def test_recorded_evaluation_reproduces():
     params = scenario_params("random", reward_mode=run["reward_mode"], B=25e3, kappa_c=run["kappa_c"])
     network = make_train(config, params).network
     keys = episode_keys(TEST_SEED, ev["episodes"])
+    m = seed_metrics(network, nets, config, keys, params, (25e3,))
     for s, recorded in enumerate(row["seeds"]):
-        net = {"params": {k: {n: w[s] for n, w in layer.items()} for k, layer in nets["params"].items()}}
-        m = evaluate_agent(network, net, config, keys, params)
-        assert abs(m["mean_psnr"].mean() - recorded["mean_psnr"]) <= recorded["ci95"], s
+        assert abs(m["mean_psnr"][s, 0].mean() - recorded["mean_psnr"]) <= recorded["ci95"], s
+
+
+def test_seed_metrics_is_a_loop_over_seeds_and_bandwidths():
+    """The program vmapped over seeds and B gives each seed's own evaluation at each B exactly."""
+    run, config, nets = load_shipped()
+    params = scenario_params("random", reward_mode=run["reward_mode"], kappa_c=run["kappa_c"])
+    network = make_train(config, params).network
+    keys = episode_keys(7, 12)
+    bandwidths = (5e3, 40e3)
+    m = seed_metrics(network, nets, config, keys, params, bandwidths)
+    for s in range(run["seeds"]):
+        for j, b in enumerate(bandwidths):
+            one = evaluate_agent(network, jax.tree.map(lambda x: x[s], nets), config, keys, params.replace(B=b))
+            for k in ("mean_psnr", "arrived", "shield_share"):
+                np.testing.assert_array_equal(one[k], m[k][s, j])

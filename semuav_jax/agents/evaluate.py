@@ -14,6 +14,7 @@ from flax import struct
 from semuav_jax.agents.ddqn import DDQNConfig, agent_input, command
 from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import rollout
+from semuav_jax.sharding import shard_episodes
 
 
 @struct.dataclass
@@ -56,3 +57,19 @@ def evaluate_agent(network, net_params, config: DDQNConfig, keys, params: EnvPar
                           state_axes=None)
     metrics = jax.tree.map(np.asarray, metrics)
     return (metrics, jax.tree.map(np.asarray, tr)) if trace else metrics
+
+
+def seed_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams, bandwidths) -> dict:
+    """Per-episode metrics (seeds, len(bandwidths), E) of the greedy policy of every seed of ``nets``
+    (weights with a leading seed axis) at every B, in one jitted program vmapped over seeds and B
+    and sharded over the host's devices."""
+    validate_params(params)
+    E = len(keys)
+    skeys = shard_episodes(keys)
+    policy = greedy_policy(network, config)
+
+    def at(net, b):
+        return rollout(policy, skeys, params.replace(B=b), agent_state(net), state_axes=None)[0]
+
+    out = jax.jit(jax.vmap(jax.vmap(at, (None, 0)), (0, None)))(nets, jnp.asarray(bandwidths, jnp.float32))
+    return {k: np.asarray(v)[..., :E] for k, v in out.items()}

@@ -23,11 +23,10 @@ from baselines.planner import make_plans, planner
 from baselines.policies import POLICIES
 from baselines.report import flights, tune
 from semuav_jax.agents.ddqn import DDQNConfig
-from semuav_jax.agents.evaluate import agent_state, greedy_policy
+from semuav_jax.agents.evaluate import agent_state, greedy_policy, seed_metrics
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams
 from semuav_jax.rollout import rollout
-from semuav_jax.sharding import shard_episodes
 from semuav_jax.stats import mean_ci
 
 BANDWIDTHS = (5e3, 10e3, 15e3, 20e3, 25e3, 30e3, 35e3, 40e3)
@@ -36,19 +35,6 @@ PANEL_B = 25e3
 FULL = {"bandwidths": BANDWIDTHS, "velocities": VELOCITIES, "layouts": 1000, "validation_layouts": 500}
 QUICK = {"bandwidths": (5e3, 20e3, 25e3, 40e3), "velocities": (4.0, DEFAULT_V_B, 16.0, 24.0), "layouts": 300,
          "validation_layouts": 100}
-
-
-def agent_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams, bandwidths) -> dict:
-    """Per-episode metrics (seeds, len(bandwidths), E) of each seed's greedy policy at each B, one program."""
-    E = len(keys)
-    skeys = shard_episodes(keys)
-    policy = greedy_policy(network, config)
-
-    def at(net, b):
-        return rollout(policy, skeys, params.replace(B=b), agent_state(net), state_axes=None)[0]
-
-    out = jax.jit(jax.vmap(jax.vmap(at, (None, 0)), (0, None)))(nets, jnp.asarray(bandwidths, jnp.float32))
-    return {k: np.asarray(v)[..., :E] for k, v in out.items()}
 
 
 def behaviour(trace: dict, params: EnvParams) -> dict:
@@ -124,7 +110,7 @@ def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, 
     plans = [make_plans(keys, params.replace(B=b), workers=workers) for b in sweep_B]
     refs = flights(params, keys, tuned, sweep_B, workers, rank=rank, plans=plans)
     log("references flown (greedy, TSP at 8.9 m/s and v_b*; planner)")
-    agent = agent_metrics(network, nets, config, keys, params, sweep_B)
+    agent = seed_metrics(network, nets, config, keys, params, sweep_B)
     log("agent evaluated")
     out = {"layouts": len(keys), "test_seed": TEST_SEED, "validation_seed": VALIDATION_SEED,
            "validation_layouts": grid["validation_layouts"], "tuning": tuned, "bandwidths": list(sweep_B),

@@ -11,23 +11,16 @@ from __future__ import annotations
 
 import dataclasses
 
-import jax
 import numpy as np
 
 from baselines.report import BANDWIDTHS, flights, summary, tune
 from semuav_jax.agents.ddqn import DDQNConfig
-from semuav_jax.agents.evaluate import evaluate_agent
+from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams
 from semuav_jax.stats import mean_ci, wilson_interval
 
 REFERENCES = ("greedy v_b*", "tsp v_b*")  # the margins that must be positive
-
-
-def seed_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams) -> list[dict]:
-    """Per-episode metrics of each seed's greedy policy (``nets`` has a leading seed axis)."""
-    seeds = jax.tree.leaves(nets)[0].shape[0]
-    return [evaluate_agent(network, jax.tree.map(lambda x: x[s], nets), config, keys, params) for s in range(seeds)]
 
 
 def compare(network, nets, config: DDQNConfig, params: EnvParams, bandwidths=BANDWIDTHS, episodes: int = 1000,
@@ -38,10 +31,13 @@ def compare(network, nets, config: DDQNConfig, params: EnvParams, bandwidths=BAN
     keys = episode_keys(TEST_SEED, episodes)
     refs = flights(params, keys, tuned, bandwidths, workers)
     unshielded = dataclasses.replace(config, shield_margin=None)
+    per_seed = seed_metrics(network, nets, config, keys, params, bandwidths)
+    if ablate_shield and config.shield_margin is not None:
+        bare = seed_metrics(network, nets, unshielded, keys, params, bandwidths)
+    seeds = per_seed["mean_psnr"].shape[0]
     rows = []
-    for b, ref in zip(bandwidths, refs):
-        pb = params.replace(B=b)
-        agent = seed_metrics(network, nets, config, keys, pb)
+    for j, (b, ref) in enumerate(zip(bandwidths, refs)):
+        agent = [{k: v[s, j] for k, v in per_seed.items()} for s in range(seeds)]
         row = {"B": float(b), "references": {k: {"v_b": m["v_b"], **summary(m)} for k, m in ref.items()},
                "seeds": []}
         for m in agent:
@@ -50,9 +46,9 @@ def compare(network, nets, config: DDQNConfig, params: EnvParams, bandwidths=BAN
                 s[f"minus {name}"] = mean_ci(m["mean_psnr"] - ref[name]["mean_psnr"])
             row["seeds"].append(s)
         if ablate_shield and config.shield_margin is not None:
-            for s, m in zip(row["seeds"], seed_metrics(network, nets, unshielded, keys, pb)):
-                s["arrived_without_shield"] = float(np.mean(m["arrived"]))
-                s["mean_psnr_without_shield"] = float(np.mean(m["mean_psnr"]))
+            for i, s in enumerate(row["seeds"]):
+                s["arrived_without_shield"] = float(np.mean(bare["arrived"][i, j]))
+                s["mean_psnr_without_shield"] = float(np.mean(bare["mean_psnr"][i, j]))
         means = [s["mean_psnr"] for s in row["seeds"]]
         row["agent"] = {"mean_psnr": mean_ci(means)}
         for name in (*REFERENCES, "planner"):

@@ -1,6 +1,6 @@
 """Command line for the DeepJSCC of MODEL.md section 9: train, curves, figure.
 
-    python -m semuav_jax.jscc train --out runs/jscc --steps 4000
+    python -m semuav_jax.jscc train --out runs/jscc --steps 3600
     python -m semuav_jax.jscc curves --ckpt runs/jscc --out semuav_jax/data/psnr_curves.npz
     python -m semuav_jax.jscc figure --out docs/figures/deepjscc.png
 """
@@ -16,25 +16,30 @@ from semuav_jax.jscc.train import CHANNELS, TrainConfig
 
 def _train(a) -> None:
     from semuav_jax.jscc import data
-    from semuav_jax.jscc.train import load_config, train
+    from semuav_jax.jscc.train import check_out, load_config, train
 
     if a.images and a.cifar10:
         raise ValueError("give at most one of --images and --cifar10")
+    if a.minutes is not None and not a.minutes > 0:
+        raise ValueError(f"--minutes must be positive, got {a.minutes}")
+    check_out(a.out, a.resume, a.overwrite)
+    # every TrainConfig field has the --option of the same name, None when not given
+    given = {f.name: getattr(a, f.name) for f in dataclasses.fields(TrainConfig) if getattr(a, f.name) is not None}
+    if a.resume:
+        cfg, _ = load_config(a.out)
+        clash = [f"--{k.replace('_', '-')} {v} (saved {getattr(cfg, k)})"
+                 for k, v in given.items() if v != getattr(cfg, k)]
+        if clash:
+            raise ValueError(f"--resume continues the run saved in {a.out}, whose config differs: {', '.join(clash)}")
+    else:
+        cfg = TrainConfig(**{**given, "init_from": a.init_from or None})
     if a.images:
         photos = data.folder_photos(a.images)
     elif a.cifar10:
         photos = list(data.cifar10_images(a.cifar10))
     else:
         photos = data.builtin_train_photos()
-    if a.resume:
-        cfg, _ = load_config(a.out)
-    else:
-        # every TrainConfig field has the --option of the same name
-        given = {f.name: getattr(a, f.name) for f in dataclasses.fields(TrainConfig)}
-        cfg = TrainConfig(**{**given, "init_from": a.init_from or None})
-    if a.minutes is not None and not a.minutes > 0:
-        raise ValueError(f"--minutes must be positive, got {a.minutes}")
-    _, history = train(cfg, photos, out=a.out, resume=a.resume, minutes=a.minutes)
+    _, history = train(cfg, photos, out=a.out, resume=a.resume, minutes=a.minutes, overwrite=a.overwrite)
     if history:
         step, loss, secs = history[-1]
         print(f"step {step}/{cfg.steps}, loss {loss:.5f}, {secs / 60:.1f} min total; checkpoint in {a.out}")
@@ -56,29 +61,31 @@ def _figure(a) -> None:
 
 
 def main(argv=None) -> int:
-    d = TrainConfig()
     p = argparse.ArgumentParser(prog="python -m semuav_jax.jscc", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="cmd", required=True)
     t = sub.add_parser("train", help="train (or resume) the DeepJSCC; checkpoints in --out")
     t.add_argument("--out", required=True, help="checkpoint directory")
-    t.add_argument("--steps", type=int, default=d.steps, help="total steps (fixes the lr schedule)")
+    t.add_argument("--steps", type=int, default=None, help="total steps (fixes the lr schedule)")
     t.add_argument("--minutes", type=float, default=None, help="stop (and checkpoint) after this wall-clock time")
     t.add_argument("--resume", action="store_true", help="continue the run saved in --out")
-    t.add_argument("--batch", type=int, default=d.batch)
-    t.add_argument("--lr", type=float, default=d.lr)
-    t.add_argument("--snr-db", type=float, default=d.snr_db, help="training AWGN SNR in dB")
-    t.add_argument("--width", type=int, default=d.width, help="conv channels")
-    t.add_argument("--seed", type=int, default=d.seed)
+    t.add_argument("--overwrite", action="store_true",
+                   help="replace the checkpoint in --out (its other files stay) instead of refusing")
+    t.add_argument("--batch", type=int, default=None)
+    t.add_argument("--lr", type=float, default=None)
+    t.add_argument("--snr-db", type=float, default=None, help="training AWGN SNR in dB")
+    t.add_argument("--width", type=int, default=None, help="conv channels")
+    t.add_argument("--seed", type=int, default=None)
     t.add_argument("--init-from", default=None, help="start from the parameters of the run in this directory")
-    t.add_argument("--monotone-weight", type=float, default=d.monotone_weight,
+    t.add_argument("--monotone-weight", type=float, default=None,
                    help="weight of the hinge that makes loss(k2) <= loss(k1) for prefixes k1 < k2 (0: plain loss)")
-    t.add_argument("--monotone-margin", type=float, default=d.monotone_margin, help="margin of that hinge (dB)")
-    t.add_argument("--monotone-gap", type=int, default=d.monotone_gap,
+    t.add_argument("--monotone-margin", type=float, default=None, help="margin of that hinge (dB)")
+    t.add_argument("--monotone-gap", type=int, default=None,
                    help="half of the hinge's pairs have k2 - k1 uniform in 1..this")
-    t.add_argument("--channel", choices=CHANNELS, default=d.channel,
+    t.add_argument("--channel", choices=CHANNELS, default=None,
                    help="training channel: AWGN at --snr-db, or noise-free 8-bit I/Q as in the curves")
-    t.add_argument("--mask-input", action="store_true", help="the decoder also sees which latent entries arrived")
-    t.add_argument("--synthetic-fraction", type=float, default=d.synthetic_fraction,
+    t.add_argument("--mask-input", action="store_true", default=None,
+                   help="the decoder also sees which latent entries arrived")
+    t.add_argument("--synthetic-fraction", type=float, default=None,
                    help="fraction of each batch replaced by synthetic dead-leaves images")
     t.add_argument("--images", default=None, help="train on the images of this folder instead")
     t.add_argument("--cifar10", default=None, help="train on CIFAR-10 python batches in this folder instead")
@@ -96,7 +103,7 @@ def main(argv=None) -> int:
     a = p.parse_args(argv)
     try:
         a.func(a)
-    except (ValueError, FileNotFoundError) as e:
+    except (ValueError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     return 0

@@ -14,6 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
+try:
+    from numpy._core.multiarray import _reconstruct
+except ImportError:  # numpy < 2
+    from numpy.core.multiarray import _reconstruct
+
 CROP = 32
 SCALES = (1, 2, 4)
 SKIMAGE_TRAIN = (
@@ -123,8 +128,34 @@ def folder_photos(folder: str | os.PathLike) -> list[np.ndarray]:
     return photos
 
 
+# The only globals a CIFAR-10 python batch references (numpy arrays, pickled by numpy 1 or 2).
+CIFAR_GLOBALS = {
+    ("numpy.core.multiarray", "_reconstruct"): _reconstruct,
+    ("numpy._core.multiarray", "_reconstruct"): _reconstruct,
+    ("numpy", "ndarray"): np.ndarray,
+    ("numpy", "dtype"): np.dtype,
+}
+
+
+class _NotCifar(Exception):
+    pass
+
+
+class _CifarUnpickler(pickle.Unpickler):
+    """Unpickler that builds nothing but builtins and numpy arrays: ``pickle.load`` of a crafted
+    file runs arbitrary code, through the globals it names."""
+
+    def find_class(self, module, name):
+        if (module, name) not in CIFAR_GLOBALS:
+            raise _NotCifar(f"it references {module}.{name}")
+        return CIFAR_GLOBALS[module, name]
+
+
 def cifar10_images(path: str | os.PathLike, test: bool = False) -> np.ndarray:
-    """CIFAR-10 from its python batches in ``path`` (data_batch_1..5 or test_batch) as (N, 32, 32, 3)."""
+    """CIFAR-10 from its python batches in ``path`` (data_batch_1..5 or test_batch) as (N, 32, 32, 3).
+
+    A batch may reference no global outside :data:`CIFAR_GLOBALS`, so a crafted file cannot run code.
+    """
     path = Path(path)
     names = ["test_batch"] if test else [f"data_batch_{i}" for i in range(1, 6)]
     files = [path / n for n in names]
@@ -135,8 +166,10 @@ def cifar10_images(path: str | os.PathLike, test: bool = False) -> np.ndarray:
     for f in files:
         try:
             with open(f, "rb") as fh:
-                d = pickle.load(fh, encoding="bytes")
+                d = _CifarUnpickler(fh, encoding="bytes").load()
             arrays.append(np.asarray(d[b"data"], np.uint8).reshape(-1, 3, 32, 32).transpose(0, 2, 3, 1))
+        except _NotCifar as e:
+            raise ValueError(f"{f} is not a CIFAR-10 batch: {e}") from None
         except Exception as e:
             raise ValueError(f"{f}: not a readable CIFAR-10 python batch ({type(e).__name__}: {e})") from e
     return np.concatenate(arrays).astype(np.float32) / 255.0

@@ -31,6 +31,7 @@ import dataclasses
 import functools
 import json
 import os
+import tempfile
 import time
 from pathlib import Path
 
@@ -184,6 +185,38 @@ def save_checkpoint(out: Path, cfg: TrainConfig, params, opt_state, step: int, h
     atomic_write(out / CONFIG_FILE, json.dumps(meta, indent=1).encode())
 
 
+def check_out(out: str | os.PathLike, resume: bool = False, overwrite: bool = False) -> None:
+    """ValueError unless checkpoints can be written to the directory ``out`` (made if absent) and,
+    unless ``resume`` or ``overwrite``, it holds none yet."""
+    out = Path(out)
+    if resume and overwrite:
+        raise ValueError("give at most one of --resume and --overwrite")
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out} is a file, not a checkpoint directory")
+    base = out
+    while not base.exists():
+        base = base.parent
+    if not base.is_dir():
+        raise ValueError(f"cannot write checkpoints to --out {out}: {base} is a file")
+    try:
+        with tempfile.TemporaryFile(dir=base):
+            pass
+    except OSError as e:
+        raise ValueError(f"cannot write checkpoints to --out {out}: {e.strerror or e}") from None
+    held = [n for n in (CKPT_FILE, CONFIG_FILE) if (out / n).exists()]
+    if held and not (resume or overwrite):
+        raise ValueError(f"--out {out} already holds a checkpoint ({', '.join(held)}): "
+                         "give --resume to continue it or --overwrite to replace it")
+
+
+def remove_stale_temps(out: Path) -> None:
+    """Remove the temporary files that a save killed before its rename left in ``out``
+    (``semuav_jax.io.atomic_write`` names them ``<file>.<8 random characters>.tmp``)."""
+    for n in (CKPT_FILE, CONFIG_FILE):
+        for t in out.glob(f"{n}.????????.tmp"):
+            t.unlink()
+
+
 def load_config(ckpt_dir: str | os.PathLike) -> tuple[TrainConfig, dict]:
     """Config and run metadata of a checkpoint directory; ValueError if absent or broken."""
     p = Path(ckpt_dir) / CONFIG_FILE
@@ -214,6 +247,7 @@ def train(
     out: str | os.PathLike | None = None,
     resume: bool = False,
     minutes: float | None = None,
+    overwrite: bool = False,
     ckpt_every_s: float = 60.0,
     progress: bool = True,
     log_every: int = 100,
@@ -221,12 +255,17 @@ def train(
     """Train (or resume) up to ``cfg.steps`` steps or ``minutes`` wall-clock; returns (params, history).
 
     ``history`` holds (step, mean loss over the last ``log_every`` steps, elapsed seconds); the
-    wall-clock limit and checkpoints are checked every ``log_every`` steps.
+    wall-clock limit and checkpoints are checked every ``log_every`` steps. A fresh run refuses an
+    ``out`` that holds a checkpoint unless ``overwrite``, which deletes the checkpoint (and nothing
+    else) once the starting parameters are built; temporary files of a killed save are removed.
     """
     cfg.validate()
     if not photos:
         raise ValueError("no training photos")
     out = Path(out) if out is not None else None
+    if out is not None:
+        check_out(out, resume, overwrite)
+        remove_stale_temps(out)
     opt = make_optimizer(cfg)
     history: list = []
     start, elapsed0 = 0, 0.0
@@ -242,6 +281,9 @@ def train(
     else:
         params = start_params(cfg)
         opt_state = opt.init(params)
+        if overwrite and out is not None:
+            for n in (CKPT_FILE, CONFIG_FILE):
+                (out / n).unlink(missing_ok=True)
     step_fn = make_train_step(cfg)
     base_key = jax.random.PRNGKey(cfg.seed)
     t0, last_ckpt = time.time(), time.time()
