@@ -17,10 +17,13 @@ import sys
 import time
 from pathlib import Path
 
-from semuav_jax.agents.runs import CKPT_FILE, CONFIG_FILE, METRICS_FILE, MODEL_FILE
-from semuav_jax.io import atomic_write
+from semuav_jax.agents.runs import CKPT_FILE, CONFIG_FILE, CURVE_FILE, METRICS_FILE, MODEL_FILE, RUN_FILES, clear_run
+from semuav_jax.io import atomic_write, check_writable_folder, remove_stale_temps
 
 SCENARIO = {"scenario": "random", "reward_mode": "gain", "bandwidth": 25e3, "kappa_c": 10.0, "r_g": 0.0}
+RUN_OPTIONS = {"seeds": (3, "independent agents trained in one program"), "seed": (0, "base random seed"),
+               "segments": (50, "host-level segments (progress + checkpoint each)")}
+INT_COLUMNS = ("seed", "chunk", "env_steps", "episodes")
 METRIC_COLUMNS = ("seed", "chunk", "env_steps", "epsilon", "episodes", "loss", "mean_psnr", "return", "arrived",
                   "coverage", "shield_share")
 
@@ -83,9 +86,8 @@ def parse_args(argv=None):
                                                         for x in (default if isinstance(default, tuple) else (default,)))
         p.add_argument("--" + f.name.replace("_", "-"), default=None, help=f"{f.metadata['help']} (default: {shown})",
                        **_option_type(default))
-    p.add_argument("--seeds", type=int, default=3, help="independent agents trained in one program (default: %(default)s)")
-    p.add_argument("--seed", type=int, default=0, help="base random seed")
-    p.add_argument("--segments", type=int, default=50, help="host-level segments (progress + checkpoint each)")
+    for name, (default, text) in RUN_OPTIONS.items():
+        p.add_argument("--" + name, type=type(default), default=None, help=f"{text} (default: {default})")
     p.add_argument("--max-segments", type=int, default=None,
                    help="stop after this many segments in this session (continue later with --resume)")
     p.add_argument("--eval-episodes", type=int, default=1000,
@@ -122,8 +124,29 @@ def run_config(args) -> dict:
     given = {k: None if v == NONE or v == [NONE] else tuple(v) if isinstance(v, list) else v for k, v in given.items()}
     cfg = preset_config(args.preset, **given)
     scenario = {k: getattr(args, k) if getattr(args, k) is not None else preset.get(k, v) for k, v in SCENARIO.items()}
-    return {"preset": args.preset, **scenario, "seeds": args.seeds, "seed": args.seed, "segments": args.segments,
-            "curves": args.curves, "command": args.command, "ddqn": cfg.to_dict()}
+    run = {k: getattr(args, k) if getattr(args, k) is not None else v for k, (v, _) in RUN_OPTIONS.items()}
+    return {"preset": args.preset, **scenario, **run, "curves": args.curves, "command": args.command, "ddqn": cfg.to_dict()}
+
+
+def resume_clashes(args, saved: dict) -> list[str]:
+    """The options given with --resume whose value differs from the saved run's, as 'option value (saved x)'."""
+    import dataclasses
+
+    from semuav_jax.agents.ddqn import DDQNConfig
+
+    fresh = run_config(args)
+    ddqn = {f.name for f in dataclasses.fields(DDQNConfig)}
+    norm = lambda x: json.loads(json.dumps(x))
+    clashes = []
+    for name in (*ddqn, *SCENARIO, *RUN_OPTIONS, "curves"):
+        if getattr(args, name) is None:
+            continue
+        new, old = (fresh["ddqn"][name], saved["ddqn"].get(name)) if name in ddqn else (fresh[name], saved.get(name))
+        if norm(new) != norm(old):
+            clashes.append(f"--{name.replace('_', '-')} {new} (saved {old})")
+    if args.preset != "default" and args.preset != saved.get("preset"):
+        clashes.append(f"--preset {args.preset} (saved {saved.get('preset')})")
+    return clashes
 
 
 def load_run_config(args) -> dict:
@@ -132,23 +155,32 @@ def load_run_config(args) -> dict:
     if args.resume:
         if not (out / CONFIG_FILE).is_file() or not (out / CKPT_FILE).is_file():
             raise UsageError(f"--resume: no {CONFIG_FILE} and {CKPT_FILE} in {out}")
-        return json.loads((out / CONFIG_FILE).read_text())
+        try:
+            saved = json.loads((out / CONFIG_FILE).read_text())
+            assert isinstance(saved, dict) and "ddqn" in saved
+        except (ValueError, AssertionError):
+            raise UsageError(f"--resume: {out / CONFIG_FILE} is not a train.py run config") from None
+        clashes = resume_clashes(args, saved)
+        if clashes:
+            raise UsageError(f"--resume continues the run saved in {out}, whose config differs: {', '.join(clashes)}")
+        return saved
     return run_config(args)
 
 
 def prepare_folder(args, cfg: dict) -> None:
-    """Create the run folder and write config.json; refuse a non-empty one without --resume / --overwrite."""
-    if args.resume:
-        return
+    """Create the run folder and write config.json; refuse a non-empty one without --resume / --overwrite
+    (which deletes only a run's own files)."""
     out = Path(args.out)
+    check_writable_folder(out)
+    if args.resume:
+        remove_stale_temps(out, RUN_FILES)
+        return
     if out.exists() and any(out.iterdir()):
         if not args.overwrite:
             raise UsageError(
                 f"run folder {out} exists and is not empty; pass --resume to continue it or --overwrite to replace it"
             )
-        for f in out.iterdir():
-            if f.is_file():
-                f.unlink()
+        clear_run(out)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write(out / CONFIG_FILE, json.dumps(cfg, indent=2).encode())
 
@@ -211,9 +243,22 @@ def main(argv=None) -> int:
     init = jax.jit(jax.vmap(trainer.init))
     template = jax.eval_shape(init, keys)
     if args.resume:
-        state = serialization.from_bytes(template, (out / CKPT_FILE).read_bytes())
-        with open(out / METRICS_FILE, newline="") as f:
-            rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
+        try:
+            state = serialization.from_bytes(template, (out / CKPT_FILE).read_bytes())
+            if jax.tree.structure(state) != jax.tree.structure(template) or any(
+                    np.shape(a) != b.shape for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(template))):
+                raise ValueError("its arrays do not match config.json")
+        except Exception as e:
+            print(f"train.py: error: --resume: {out / CKPT_FILE} is unreadable or not this run's checkpoint ({e})",
+                  file=sys.stderr)
+            return 2
+        at = int(np.asarray(state.chunk)[0])
+        rows = []
+        if (out / METRICS_FILE).is_file():  # written before the checkpoint: drop rows of chunks it lacks
+            with open(out / METRICS_FILE, newline="") as f:
+                rows = [{k: int(float(v)) if k in INT_COLUMNS else float(v) for k, v in r.items()}
+                        for r in csv.DictReader(f)]
+            rows = [r for r in rows if r["chunk"] <= at]
         print(f"resuming {out} at chunk {int(np.asarray(state.chunk)[0])} / {config.num_chunks}")
     else:
         state, rows = None, []
@@ -231,15 +276,16 @@ def main(argv=None) -> int:
         metrics = jax.tree.map(np.asarray, metrics)
         for s in range(cfg["seeds"]):
             for c in range(n):
-                rows.append({"seed": s, "chunk": done + c + 1, **{k: float(metrics[k][s, c]) for k in METRIC_COLUMNS[2:]}})
+                rows.append({"seed": s, "chunk": done + c + 1, **{k: int(metrics[k][s, c]) if k in INT_COLUMNS
+                                                                 else float(metrics[k][s, c]) for k in METRIC_COLUMNS[2:]}})
         done += n
-        atomic_write(out / CKPT_FILE, serialization.to_bytes(state))
         text = io.StringIO()
         w = csv.DictWriter(text, METRIC_COLUMNS)
         w.writeheader()
         w.writerows({k: r[k] for k in METRIC_COLUMNS} for r in rows)
-        atomic_write(out / METRICS_FILE, text.getvalue().encode())
-        plot_curves(rows, out / "learning_curve.png")
+        atomic_write(out / METRICS_FILE, text.getvalue().encode())  # before the checkpoint: see resume
+        atomic_write(out / CKPT_FILE, serialization.to_bytes(state))
+        plot_curves(rows, out / CURVE_FILE)
         bar.set_postfix(psnr=f"{metrics['mean_psnr'][:, -1].mean():.2f}", eps=f"{metrics['epsilon'][0, -1]:.2f}")
         bar.update(n)
     bar.close()
@@ -259,7 +305,7 @@ def main(argv=None) -> int:
         print(markdown(report))
         if config.bandwidth_range is None:  # one bandwidth: its references are comparable with the curve
             ref = {k: v["mean_psnr"] for k, v in report["rows"][-1]["references"].items()}
-            plot_curves(rows, out / "learning_curve.png", ref)
+            plot_curves(rows, out / CURVE_FILE, ref)
     print(f"run folder: {out}")
     return 0
 

@@ -1,5 +1,6 @@
 """Atomic file writes: a temporary file in the same folder, then ``os.replace``, so an
-interrupted run never leaves a half-written result, checkpoint or curves file."""
+interrupted run never leaves a half-written result, checkpoint or curves file; and the checks an
+output folder passes before a long run writes to it."""
 
 from __future__ import annotations
 
@@ -24,3 +25,30 @@ def atomic_write(path: str | os.PathLike, data: bytes) -> Path:
         if os.path.exists(tmp):
             os.remove(tmp)
     return path
+
+
+def check_writable_folder(path: str | os.PathLike, what: str = "--out") -> Path:
+    """ValueError (one line) unless files can be written into the folder ``path`` (made later if
+    absent): checked before a long run starts, not when it saves."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{what} {path} is a file, not a folder")
+    base = path
+    while not base.exists():
+        base = base.parent
+    if not base.is_dir():
+        raise ValueError(f"cannot write to {what} {path}: {base} is a file")
+    try:
+        with tempfile.TemporaryFile(dir=base):
+            pass
+    except OSError as e:
+        raise ValueError(f"cannot write to {what} {path}: {e.strerror or e}") from None
+    return path
+
+
+def remove_stale_temps(folder: Path, names) -> None:
+    """Remove the temporary files of :func:`atomic_write` (``<name>.<8 random characters>.tmp``)
+    that a save killed before its rename left in ``folder``, for each file name in ``names``."""
+    for n in names:
+        for t in Path(folder).glob(f"{n}.????????.tmp"):
+            t.unlink()

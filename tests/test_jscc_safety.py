@@ -104,7 +104,7 @@ def test_cli_rejects_a_bad_out_before_loading_or_training(tmp_path, capsys, monk
     monkeypatch.setattr(train_mod, "train", _no)
     (tmp_path / "f").write_text("x")
     assert "is a file" in _cli_error(capsys, "--out", str(tmp_path / "f"))
-    assert "cannot write checkpoints" in _cli_error(capsys, "--out", str(tmp_path / "f" / "sub"))
+    assert "cannot write to --out" in _cli_error(capsys, "--out", str(tmp_path / "f" / "sub"))
     assert "at most one of" in _cli_error(capsys, "--out", str(tmp_path / "new"), "--resume", "--overwrite")
     assert (tmp_path / "f").read_text() == "x" and not (tmp_path / "new").exists()
 

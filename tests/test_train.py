@@ -87,7 +87,52 @@ def test_interrupted_run_resumes_exactly(run_dir, curves_file, tmp_path):
     assert res.returncode == 0, res.stderr
     assert "resuming" in res.stdout
     assert (out / "model.msgpack").read_bytes() == (run_dir / "model.msgpack").read_bytes()
-    assert len(list(csv.DictReader(open(out / "metrics.csv")))) == 2 * 4
+    assert (out / "metrics.csv").read_bytes() == (run_dir / "metrics.csv").read_bytes()
+
+
+def test_resume_drops_metrics_rows_the_checkpoint_lacks(run_dir, curves_file, tmp_path):
+    """metrics.csv is written before the checkpoint; rows of a chunk whose checkpoint a kill
+    prevented are dropped on resume, so the resumed run's metrics equal the uninterrupted run's."""
+    out = tmp_path / "r"
+    assert _train("--curves", curves_file, "--out", str(out), "--seeds", "2", *TINY, "--max-segments", "1").returncode == 0
+    with open(out / "metrics.csv", "a") as f:
+        f.write("0,3,1,1,1,1,1,1,1,1,1\n")
+    (out / "checkpoint.msgpack.abcd1234.tmp").write_bytes(b"half a checkpoint")
+    res = _train("--out", str(out), "--resume", "--eval-episodes", "0")
+    assert res.returncode == 0, res.stderr
+    assert (out / "metrics.csv").read_bytes() == (run_dir / "metrics.csv").read_bytes()
+    assert not (out / "checkpoint.msgpack.abcd1234.tmp").exists()
+
+
+def test_resume_refuses_other_options_and_broken_checkpoints(curves_file, tmp_path):
+    out = tmp_path / "r"
+    assert _train("--curves", curves_file, "--out", str(out), "--seeds", "2", *TINY, "--max-segments", "1").returncode == 0
+    res = _train("--out", str(out), "--resume", "--seed", "5", "--num-envs", "4")
+    assert res.returncode == 2 and "--seed 5 (saved 0)" in res.stderr and "--num-envs" not in res.stderr
+    ckpt = (out / "checkpoint.msgpack").read_bytes()
+    (out / "checkpoint.msgpack").write_bytes(ckpt[: len(ckpt) // 2])
+    res = _train("--out", str(out), "--resume")
+    assert res.returncode == 2 and "unreadable" in res.stderr and "Traceback" not in res.stderr
+    cfg = json.loads((out / "config.json").read_text())
+    cfg["ddqn"]["hidden"] = [8]
+    (out / "config.json").write_text(json.dumps(cfg))
+    (out / "checkpoint.msgpack").write_bytes(ckpt)
+    res = _train("--out", str(out), "--resume")
+    assert res.returncode == 2 and "not this run's checkpoint" in res.stderr and "Traceback" not in res.stderr
+
+
+def test_overwrite_deletes_only_run_files(curves_file, tmp_path):
+    out = tmp_path / "r"
+    out.mkdir()
+    (out / "config.json").write_text("{}")
+    (out / "notes.txt").write_text("mine")
+    res = _train("--curves", curves_file, "--out", str(out), *TINY, "--overwrite")
+    assert res.returncode == 2 and "notes.txt" in res.stderr
+    assert (out / "notes.txt").read_text() == "mine" and (out / "config.json").read_text() == "{}"
+    (out / "notes.txt").unlink()
+    res = _train("--curves", curves_file, "--out", str(out), *TINY[:-6], "--eval-episodes", "0", "--overwrite")
+    assert res.returncode == 0, res.stderr
+    assert (out / "model.msgpack").is_file()
 
 
 @pytest.mark.parametrize(
@@ -98,9 +143,23 @@ def test_interrupted_run_resumes_exactly(run_dir, curves_file, tmp_path):
         (["--scenario", "moon"], "invalid choice"),
         (["--bandwidth", "-5"], "B must be > 0"),
         (["--curves", "/nonexistent.npz"], "not found"),
+        (["--lr", "nan"], "lr must be finite and > 0"),
+        (["--lr", "inf"], "lr must be finite and > 0"),
+        (["--total-steps", "0"], "total_steps must be a positive integer"),
+        (["--gamma", "nan"], "gamma must be in [0, 1]"),
+        (["--hidden", "0"], "hidden must be"),
+        (["--bandwidth-range", "nan", "5e3"], "bandwidth_range"),
     ],
 )
 def test_bad_options(tmp_path, curves_file, args, msg):
     res = _train("--curves", curves_file, "--out", str(tmp_path / "x"), *args)
     assert res.returncode == 2
     assert msg in res.stderr and "Traceback" not in res.stderr
+
+
+def test_out_that_is_a_file(tmp_path, curves_file):
+    f = tmp_path / "f"
+    f.write_text("x")
+    for out in (f, f / "sub"):
+        res = _train("--curves", curves_file, "--out", str(out), *TINY)
+        assert res.returncode == 2 and "is a file" in res.stderr and "Traceback" not in res.stderr

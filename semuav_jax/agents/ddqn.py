@@ -100,8 +100,13 @@ class DDQNConfig:
             lo, hi = self.bandwidth_range
             if not 0 < lo <= hi < float("inf"):
                 raise ValueError(f"bandwidth_range must be (lo, hi) with 0 < lo <= hi, finite, got {self.bandwidth_range}")
-        if self.lr <= 0 or self.reward_scale <= 0:
-            raise ValueError("lr and reward_scale must be > 0")
+        if not self.hidden or not all(isinstance(h, int) and h >= 1 for h in self.hidden):
+            raise ValueError(f"hidden must be one or more positive layer widths, got {self.hidden}")
+        for name in ("lr", "reward_scale", "max_grad_norm"):
+            if not 0 < getattr(self, name) < float("inf"):  # NaN fails too
+                raise ValueError(f"{name} must be finite and > 0, got {getattr(self, name)}")
+        if self.shield_margin is not None and self.shield_margin == float("inf"):
+            raise ValueError("shield_margin must be finite (none: no shield)")
         if self.num_chunks < 1:
             raise ValueError(
                 f"total_steps ({self.total_steps}) is less than one chunk "

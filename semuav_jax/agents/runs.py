@@ -16,7 +16,24 @@ from semuav_jax.agents.ddqn import DDQNConfig
 
 CONFIG_FILE, METRICS_FILE, CKPT_FILE, MODEL_FILE = "config.json", "metrics.csv", "checkpoint.msgpack", "model.msgpack"
 EVAL_FILE, EVAL_MD = "eval.json", "eval.md"
+CURVE_FILE = "learning_curve.png"
+RUN_FILES = (CONFIG_FILE, METRICS_FILE, CKPT_FILE, MODEL_FILE, EVAL_FILE, EVAL_MD, CURVE_FILE)  # all a run writes
 SHIPPED = "agent"  # the shipped run folder, semuav_jax/data/agent: the output of ``python train.py``
+
+
+def clear_run(folder) -> None:
+    """Delete a run folder's files (``RUN_FILES`` and their leftover temporary files); ValueError,
+    deleting nothing, if it holds anything else."""
+    from semuav_jax.io import remove_stale_temps
+
+    folder = Path(folder)
+    remove_stale_temps(folder, RUN_FILES)
+    foreign = sorted(p.name for p in folder.iterdir() if p.name not in RUN_FILES)
+    if foreign:
+        raise ValueError(f"{folder} holds files that are not a run's ({', '.join(foreign)}); "
+                         "refusing to overwrite it: choose another --out")
+    for name in RUN_FILES:
+        (folder / name).unlink(missing_ok=True)
 
 
 def finished(folder) -> bool:

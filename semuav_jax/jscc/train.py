@@ -31,7 +31,6 @@ import dataclasses
 import functools
 import json
 import os
-import tempfile
 import time
 from pathlib import Path
 
@@ -41,7 +40,7 @@ import numpy as np
 import optax
 from flax import serialization
 
-from semuav_jax.io import atomic_write
+from semuav_jax.io import atomic_write, check_writable_folder, remove_stale_temps
 from semuav_jax.jscc.data import sample_batch
 from semuav_jax.jscc.model import IMAGE_SHAPE, M, DeepJSCC, complex_noise, prefix_mask, quantize_iq, truncate
 
@@ -191,30 +190,11 @@ def check_out(out: str | os.PathLike, resume: bool = False, overwrite: bool = Fa
     out = Path(out)
     if resume and overwrite:
         raise ValueError("give at most one of --resume and --overwrite")
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out} is a file, not a checkpoint directory")
-    base = out
-    while not base.exists():
-        base = base.parent
-    if not base.is_dir():
-        raise ValueError(f"cannot write checkpoints to --out {out}: {base} is a file")
-    try:
-        with tempfile.TemporaryFile(dir=base):
-            pass
-    except OSError as e:
-        raise ValueError(f"cannot write checkpoints to --out {out}: {e.strerror or e}") from None
+    check_writable_folder(out)
     held = [n for n in (CKPT_FILE, CONFIG_FILE) if (out / n).exists()]
     if held and not (resume or overwrite):
         raise ValueError(f"--out {out} already holds a checkpoint ({', '.join(held)}): "
                          "give --resume to continue it or --overwrite to replace it")
-
-
-def remove_stale_temps(out: Path) -> None:
-    """Remove the temporary files that a save killed before its rename left in ``out``
-    (``semuav_jax.io.atomic_write`` names them ``<file>.<8 random characters>.tmp``)."""
-    for n in (CKPT_FILE, CONFIG_FILE):
-        for t in out.glob(f"{n}.????????.tmp"):
-            t.unlink()
 
 
 def load_config(ckpt_dir: str | os.PathLike) -> tuple[TrainConfig, dict]:
@@ -265,7 +245,7 @@ def train(
     out = Path(out) if out is not None else None
     if out is not None:
         check_out(out, resume, overwrite)
-        remove_stale_temps(out)
+        remove_stale_temps(out, (CKPT_FILE, CONFIG_FILE))
     opt = make_optimizer(cfg)
     history: list = []
     start, elapsed0 = 0, 0.0
