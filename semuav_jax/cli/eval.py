@@ -1,0 +1,133 @@
+"""Reproduce the paper's Fig. 2 into ``results/`` (docs/RESULTS.md).
+
+``python eval.py --quick``: the shipped agent (the output of ``python train.py``, docs/ddqn.md)
+against greedy and TSP at 8.9 m/s and at their tuned speed and the offline planner, at 4
+bandwidths and 4 speeds on 300 test layouts. ``python eval.py``: trains that agent from scratch
+first (``train.py``'s default, in OUT/agent, resumed if interrupted), then 8 bandwidths and 8
+speeds on 1000 test layouts. ``--agent RUN`` takes a finished ``train.py`` run folder instead.
+Writes fig2a/b/c.png and fig2.json (every number, and the speeds and dwell times behind them).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+
+class UsageError(Exception):
+    """A bad option or folder: one line on stderr, exit code 2."""
+
+
+def parse_args(argv=None):
+    from semuav_jax.experiments.fig2 import FULL, QUICK
+
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--quick", action="store_true", help="the shipped agent, a smaller grid (docs/RESULTS.md)")
+    p.add_argument("--agent", default=None, help="a finished train.py run folder to evaluate (no training)")
+    p.add_argument("--out", default="results", help="output folder (default: %(default)s)")
+    p.add_argument("--overwrite", action="store_true", help="replace the results in an existing --out")
+    p.add_argument("--layouts", type=int, default=None,
+                   help=f"test layouts per point (default: {FULL['layouts']}; --quick: {QUICK['layouts']})")
+    p.add_argument("--validation-layouts", type=int, default=None,
+                   help=f"layouts that choose v_b* (default: {FULL['validation_layouts']}; --quick: {QUICK['validation_layouts']})")
+    p.add_argument("--bandwidths", type=float, nargs="+", default=None, help=f"Hz (default: {FULL['bandwidths']})")
+    p.add_argument("--velocities", type=float, nargs="+", default=None, help=f"m/s (default: {FULL['velocities']})")
+    p.add_argument("--workers", type=int, default=2, help="processes for OR-Tools and the planner")
+    p.add_argument("--curves", default=None, help="PSNR curves .npz (default: the shipped DeepJSCC curves)")
+    a = p.parse_args(argv)
+    base = QUICK if a.quick else FULL
+    a.grid = {"bandwidths": tuple(a.bandwidths or base["bandwidths"]), "velocities": tuple(a.velocities or base["velocities"]),
+              "layouts": a.layouts or base["layouts"], "validation_layouts": a.validation_layouts or base["validation_layouts"]}
+    if a.grid["layouts"] < 2 or a.grid["validation_layouts"] < 1 or a.workers < 1:
+        raise UsageError("--layouts must be >= 2, --validation-layouts and --workers >= 1")
+    for name, xs in (("bandwidths", a.grid["bandwidths"]), ("velocities", a.grid["velocities"])):
+        if not all(x > 0 and x < float("inf") for x in xs):
+            raise UsageError(f"--{name} must be finite and > 0, got {xs}")
+    if a.quick and a.agent:
+        raise UsageError("--quick evaluates the shipped agent; drop --agent or --quick")
+    out = Path(a.out)
+    if (out / "fig2.json").exists() and not a.overwrite:
+        raise UsageError(f"{out} already holds results; pass --overwrite to replace them")
+    return a
+
+
+def agent_folder(args, out: Path) -> Path:
+    """The run folder of the agent: the shipped one, --agent, or OUT/agent trained (or resumed) here."""
+    from semuav_jax.cli import train
+    from semuav_jax.agents.runs import CKPT_FILE, finished, shipped_folder
+
+    if args.quick:
+        return shipped_folder()
+    if args.agent:
+        return Path(args.agent)
+    folder = out / "agent"
+    if not finished(folder):
+        resume = ["--resume"] if (folder / CKPT_FILE).is_file() else []
+        cmd = ["--out", str(folder), "--eval-episodes", "0", *resume] + (["--curves", args.curves] if args.curves else [])
+        print(("resuming" if resume else "training") + f" the default agent in {folder} (python train.py {' '.join(cmd)})")
+        if train.main(cmd) != 0:
+            raise UsageError(f"training into {folder} failed")
+    return folder
+
+
+def main(argv=None) -> int:
+    try:
+        args = parse_args(argv)
+    except UsageError as e:
+        print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
+        return 2
+
+    import jax
+    from tqdm import tqdm
+
+    from semuav_jax import figures
+    from semuav_jax.agents.ddqn import make_train
+    from semuav_jax.agents.runs import load_run
+    from semuav_jax.agents.scenarios import scenario_params
+    from semuav_jax.curves import load_curves
+    from semuav_jax.experiments import fig2
+    from semuav_jax.io import atomic_write
+    from semuav_jax.provenance import provenance
+
+    out = Path(args.out)
+    t0 = time.time()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        folder = agent_folder(args, out)
+        run, config, nets = load_run(folder)
+        curves = load_curves(args.curves) if args.curves else None
+        params = scenario_params("random", curves, reward_mode=run.get("reward_mode", "gain"), B=25e3)
+        fixed = scenario_params("fixed", curves, reward_mode=run.get("reward_mode", "gain"), B=25e3)
+    except (UsageError, ValueError, FileNotFoundError, OSError) as e:
+        print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
+        return 2
+    train_s = time.time() - t0
+    print(f"agent: {folder} ({jax.tree.leaves(nets)[0].shape[0]} seeds); JAX devices: {jax.device_count()}")
+    network = make_train(config, params).network
+    stages = 6
+    with tqdm(total=stages, desc="Fig. 2", unit="stage", dynamic_ncols=True) as bar:
+        def log(msg):
+            bar.write(msg)
+            bar.update(1)
+        r = fig2.run(network, nets, config, params, fixed, args.grid, args.workers, log=log)
+        bar.update(stages - bar.n)
+    r.update(agent=str(folder), agent_command=run.get("command"), train_s=train_s, eval_s=time.time() - t0 - train_s,
+             devices=jax.device_count(), grid={k: list(v) if isinstance(v, tuple) else v for k, v in args.grid.items()},
+             **provenance(params))
+    r["paths"] = {k: {m: (v.tolist() if hasattr(v, "tolist") else v) for m, v in p.items()} for k, p in r["paths"].items()}
+    atomic_write(out / "fig2.json", json.dumps(r, indent=2).encode())
+    md = fig2.markdown(r)
+    atomic_write(out / "fig2.md", (md + "\n").encode())
+    figures.fig2a(r, out / "fig2a.png")
+    figures.fig2b(r, out / "fig2b.png")
+    figures.fig2c(r["paths"], fixed.replace(B=fig2.PANEL_B), out / "fig2c.png")
+    print(md)
+    print(f"wrote {out}/fig2a.png fig2b.png fig2c.png fig2.json fig2.md in {time.time() - t0:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

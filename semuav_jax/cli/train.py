@@ -1,0 +1,314 @@
+"""Train the BS's DDQN from scratch (docs/ddqn.md): ``python train.py`` trains the default agent
+(3 seeds vmapped in one program) and compares every seed with the tuned baselines and the planner
+on 1000 test layouts at B = 5, 20, 25, 40 kHz; ``--preset paper`` trains the paper's configuration.
+
+The training itself is one compiled program per segment (``semuav_jax.agents.ddqn``); this
+script splits it into host-level segments for progress, checkpoints and resume, and writes the
+run folder (``semuav_jax.agents.runs``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+import sys
+import time
+from pathlib import Path
+
+from semuav_jax.agents.runs import CKPT_FILE, CONFIG_FILE, CURVE_FILE, METRICS_FILE, MODEL_FILE, RUN_FILES, clear_run
+from semuav_jax.io import atomic_write, check_writable_folder, remove_stale_temps
+
+SCENARIO = {"scenario": "random", "reward_mode": "gain", "bandwidth": 25e3, "kappa_c": 10.0, "r_g": 0.0}
+RUN_OPTIONS = {"seeds": (3, "independent agents trained in one program"), "seed": (0, "base random seed"),
+               "segments": (50, "host-level segments (progress + checkpoint each)")}
+INT_COLUMNS = ("seed", "chunk", "env_steps", "episodes")
+METRIC_COLUMNS = ("seed", "chunk", "env_steps", "epsilon", "episodes", "loss", "mean_psnr", "return", "arrived",
+                  "coverage", "shield_share")
+
+
+class UsageError(Exception):
+    """A bad option or run folder: reported as one line, exit code 2."""
+
+
+def _option_type(default):
+    """argparse type and nargs of a config field from its default value."""
+    if isinstance(default, bool):
+        return {"type": _boolean}
+    if isinstance(default, tuple):
+        return {"type": _none_or(type(default[0])), "nargs": "+"}
+    if default is None or isinstance(default, float):
+        return {"type": _none_or(float)}
+    return {"type": type(default)}
+
+
+def _boolean(text: str) -> bool:
+    if text.lower() not in ("true", "false"):
+        raise ValueError(text)
+    return text.lower() == "true"
+
+
+NONE = "none"  # an option set to none (e.g. --shield-margin none), unlike one not given (None)
+
+
+def _none_or(kind):
+    def parse(text: str):
+        return NONE if text.lower() == NONE else kind(text)
+    parse.__name__ = kind.__name__
+    return parse
+
+
+def parse_args(argv=None):
+    import dataclasses
+
+    from semuav_jax.agents.ddqn import PRESETS, DDQNConfig
+
+    p = argparse.ArgumentParser(description="Train the BS's DDQN from scratch (docs/ddqn.md). Unset options come "
+                                "from --preset; on --resume, from the run folder.")
+    p.add_argument("--preset", choices=sorted(PRESETS), default="default",
+                   help="default: waypoint actions, one agent for every bandwidth; paper: the paper's configuration")
+    p.add_argument("--scenario", choices=("fixed", "random"), default=None,
+                   help=f"fixed paper layout or a new random layout per episode (default: {SCENARIO['scenario']})")
+    p.add_argument("--reward-mode", choices=("paper", "gain"), default=None,
+                   help=f"reward of MODEL.md section 4 (default: {SCENARIO['reward_mode']}; paper preset: paper)")
+    p.add_argument("--bandwidth", type=float, default=None,
+                   help=f"B in Hz when bandwidth_range is none, and for --eval-episodes of such an agent (default: {SCENARIO['bandwidth']:g})")
+    p.add_argument("--kappa-c", type=float, default=None,
+                   help=f"weight of the PSNR gain in the 'gain' reward (default: {SCENARIO['kappa_c']:g})")
+    p.add_argument("--r-g", type=float, default=None,
+                   help="arrival reward of eq. 4.4 (default: 0, since the shield guarantees arrival and a discounted "
+                        "bonus only pays for arriving early, docs/ddqn.md; paper preset: 500)")
+    d = DDQNConfig()
+    for f in dataclasses.fields(DDQNConfig):
+        default = getattr(d, f.name)
+        shown = "none" if default is None else " ".join(f"{x:g}" if isinstance(x, float) else str(x)
+                                                        for x in (default if isinstance(default, tuple) else (default,)))
+        p.add_argument("--" + f.name.replace("_", "-"), default=None, help=f"{f.metadata['help']} (default: {shown})",
+                       **_option_type(default))
+    for name, (default, text) in RUN_OPTIONS.items():
+        p.add_argument("--" + name, type=type(default), default=None, help=f"{text} (default: {default})")
+    p.add_argument("--max-segments", type=int, default=None,
+                   help="stop after this many segments in this session (continue later with --resume)")
+    p.add_argument("--eval-episodes", type=int, default=1000,
+                   help="test layouts for the comparison with the tuned baselines and the planner (0: skip)")
+    p.add_argument("--validation-episodes", type=int, default=500,
+                   help="validation layouts that choose the baselines' tuned speed v_b* (default: %(default)s)")
+    p.add_argument("--workers", type=int, default=2, help="processes for OR-Tools and the planner in the evaluation")
+    p.add_argument("--curves", type=str, default=None, help="PSNR curves .npz, or 'synthetic' for the stand-in test curves (default: the shipped DeepJSCC curves)")
+    p.add_argument("--out", type=str, default=None, help="run folder (default: runs/ddqn_<preset>)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
+    g.add_argument("--overwrite", action="store_true", help="delete the contents of an existing --out first")
+    args = p.parse_args(argv)
+    args.command = " ".join(["python train.py", *(sys.argv[1:] if argv is None else argv)])
+    if args.out is None:
+        args.out = f"runs/ddqn_{args.preset}"
+    for name in ("seeds", "segments", "max_segments", "workers", "validation_episodes"):
+        if getattr(args, name) is not None and getattr(args, name) < 1:
+            raise UsageError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
+    if args.eval_episodes < 0:
+        raise UsageError(f"--eval-episodes must be >= 0, got {args.eval_episodes}")
+    return args
+
+
+def run_config(args) -> dict:
+    """The JSON-able description of a run (written to config.json; read back on --resume)."""
+    import dataclasses
+
+    from semuav_jax.agents.ddqn import PRESETS, DDQNConfig, preset_config
+
+    preset = PRESETS[args.preset]
+    names = {f.name for f in dataclasses.fields(DDQNConfig)}
+    given = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
+    given = {k: None if v == NONE or v == [NONE] else tuple(v) if isinstance(v, list) else v for k, v in given.items()}
+    cfg = preset_config(args.preset, **given)
+    scenario = {k: getattr(args, k) if getattr(args, k) is not None else preset.get(k, v) for k, v in SCENARIO.items()}
+    run = {k: getattr(args, k) if getattr(args, k) is not None else v for k, (v, _) in RUN_OPTIONS.items()}
+    return {"preset": args.preset, **scenario, **run, "curves": args.curves, "command": args.command, "ddqn": cfg.to_dict()}
+
+
+def resume_clashes(args, saved: dict) -> list[str]:
+    """The options given with --resume whose value differs from the saved run's, as 'option value (saved x)'."""
+    import dataclasses
+
+    from semuav_jax.agents.ddqn import DDQNConfig
+
+    fresh = run_config(args)
+    ddqn = {f.name for f in dataclasses.fields(DDQNConfig)}
+    norm = lambda x: json.loads(json.dumps(x))
+    clashes = []
+    for name in (*ddqn, *SCENARIO, *RUN_OPTIONS, "curves"):
+        if getattr(args, name) is None:
+            continue
+        new, old = (fresh["ddqn"][name], saved["ddqn"].get(name)) if name in ddqn else (fresh[name], saved.get(name))
+        if norm(new) != norm(old):
+            clashes.append(f"--{name.replace('_', '-')} {new} (saved {old})")
+    if args.preset != "default" and args.preset != saved.get("preset"):
+        clashes.append(f"--preset {args.preset} (saved {saved.get('preset')})")
+    return clashes
+
+
+def load_run_config(args) -> dict:
+    """The run's config: read back from the run folder on --resume, else built from the options."""
+    out = Path(args.out)
+    if args.resume:
+        if not (out / CONFIG_FILE).is_file() or not (out / CKPT_FILE).is_file():
+            raise UsageError(f"--resume: no {CONFIG_FILE} and {CKPT_FILE} in {out}")
+        try:
+            saved = json.loads((out / CONFIG_FILE).read_text())
+            assert isinstance(saved, dict) and "ddqn" in saved
+        except (ValueError, AssertionError):
+            raise UsageError(f"--resume: {out / CONFIG_FILE} is not a train.py run config") from None
+        clashes = resume_clashes(args, saved)
+        if clashes:
+            raise UsageError(f"--resume continues the run saved in {out}, whose config differs: {', '.join(clashes)}")
+        return saved
+    return run_config(args)
+
+
+def prepare_folder(args, cfg: dict) -> None:
+    """Create the run folder and write config.json; refuse a non-empty one without --resume / --overwrite
+    (which deletes only a run's own files)."""
+    out = Path(args.out)
+    check_writable_folder(out)
+    if args.resume:
+        remove_stale_temps(out, RUN_FILES)
+        return
+    if out.exists() and any(out.iterdir()):
+        if not args.overwrite:
+            raise UsageError(
+                f"run folder {out} exists and is not empty; pass --resume to continue it or --overwrite to replace it"
+            )
+        clear_run(out)
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write(out / CONFIG_FILE, json.dumps(cfg, indent=2).encode())
+
+
+def plot_curves(rows, path: Path, reference: dict | None = None) -> None:
+    import matplotlib.pyplot as plt
+
+    from semuav_jax.figures import save_figure
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+    for seed in sorted({r["seed"] for r in rows}):
+        rs = [r for r in rows if r["seed"] == seed]
+        x = [r["env_steps"] for r in rs]
+        axes[0].plot(x, [r["mean_psnr"] for r in rs], label=f"seed {seed}")
+        axes[1].plot(x, [r["return"] for r in rs])
+    for name, value in (reference or {}).items():
+        axes[0].axhline(value, ls="--", color="gray")
+        axes[0].annotate(name, (0, value), fontsize=8, color="gray")
+    axes[0].set(xlabel="environment steps", ylabel="mean PSNR of finished episodes (dB)",
+                title="training (ε-greedy, over the training bandwidths)")
+    axes[1].set(xlabel="environment steps", ylabel="episode return")
+    axes[0].legend(fontsize=8)
+    save_figure(fig, path, dpi=110)
+
+
+def segment_lengths(num_chunks: int, segments: int, done: int):
+    """Chunks per remaining segment: equal lengths (one compilation) plus at most one remainder."""
+    seg = -(-num_chunks // segments)
+    left = num_chunks - done
+    return [seg] * (left // seg) + ([left % seg] if left % seg else [])
+
+
+def main(argv=None) -> int:
+    try:
+        args = parse_args(argv)
+        cfg = load_run_config(args)
+    except (UsageError, ValueError) as e:
+        print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
+        return 2
+
+    import jax
+    import numpy as np
+    from flax import serialization
+    from tqdm import tqdm
+
+    from semuav_jax.agents.ddqn import DDQNConfig, make_train
+    from semuav_jax.agents.runs import run_params
+
+    out = Path(args.out)
+    try:
+        params = run_params(cfg)
+        config = DDQNConfig.from_dict(cfg["ddqn"])
+        prepare_folder(args, cfg)
+    except (UsageError, ValueError, FileNotFoundError) as e:
+        print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
+        return 2
+
+    trainer = make_train(config, params)
+    keys = jax.random.split(jax.random.PRNGKey(cfg["seed"]), cfg["seeds"])
+    init = jax.jit(jax.vmap(trainer.init))
+    template = jax.eval_shape(init, keys)
+    if args.resume:
+        try:
+            state = serialization.from_bytes(template, (out / CKPT_FILE).read_bytes())
+            if jax.tree.structure(state) != jax.tree.structure(template) or any(
+                    np.shape(a) != b.shape for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(template))):
+                raise ValueError("its arrays do not match config.json")
+        except Exception as e:
+            print(f"{Path(sys.argv[0]).name}: error: --resume: {out / CKPT_FILE} is unreadable or not this run's checkpoint ({e})",
+                  file=sys.stderr)
+            return 2
+        at = int(np.asarray(state.chunk)[0])
+        rows = []
+        if (out / METRICS_FILE).is_file():  # written before the checkpoint: drop rows of chunks it lacks
+            with open(out / METRICS_FILE, newline="") as f:
+                rows = [{k: int(float(v)) if k in INT_COLUMNS else float(v) for k, v in r.items()}
+                        for r in csv.DictReader(f)]
+            rows = [r for r in rows if r["chunk"] <= at]
+        print(f"resuming {out} at chunk {int(np.asarray(state.chunk)[0])} / {config.num_chunks}")
+    else:
+        state, rows = None, []
+
+    t0 = time.time()
+    if state is None:
+        state = init(keys)
+    done = int(np.asarray(state.chunk)[0])
+    runs = {}
+    bar = tqdm(total=config.num_chunks, initial=done, unit="chunk", desc="training", dynamic_ncols=True)
+    for n in segment_lengths(config.num_chunks, cfg["segments"], done)[: args.max_segments]:
+        if n not in runs:
+            runs[n] = jax.jit(jax.vmap(lambda s, n=n: trainer.run(s, n)))
+        state, metrics = runs[n](state)
+        metrics = jax.tree.map(np.asarray, metrics)
+        for s in range(cfg["seeds"]):
+            for c in range(n):
+                rows.append({"seed": s, "chunk": done + c + 1, **{k: int(metrics[k][s, c]) if k in INT_COLUMNS
+                                                                 else float(metrics[k][s, c]) for k in METRIC_COLUMNS[2:]}})
+        done += n
+        text = io.StringIO()
+        w = csv.DictWriter(text, METRIC_COLUMNS)
+        w.writeheader()
+        w.writerows({k: r[k] for k in METRIC_COLUMNS} for r in rows)
+        atomic_write(out / METRICS_FILE, text.getvalue().encode())  # before the checkpoint: see resume
+        atomic_write(out / CKPT_FILE, serialization.to_bytes(state))
+        plot_curves(rows, out / CURVE_FILE)
+        bar.set_postfix(psnr=f"{metrics['mean_psnr'][:, -1].mean():.2f}", eps=f"{metrics['epsilon'][0, -1]:.2f}")
+        bar.update(n)
+    bar.close()
+    if done < config.num_chunks:
+        print(f"stopped at chunk {done} / {config.num_chunks}; continue with --resume --out {out}")
+        return 0
+    wall = time.time() - t0
+    atomic_write(out / MODEL_FILE, serialization.to_bytes(state.params))
+    print(f"training: {config.num_chunks * config.steps_per_chunk * config.num_envs * cfg['seeds']:,} env steps "
+          f"in {wall:.0f} s (this session)")
+
+    if args.eval_episodes:
+        from semuav_jax.experiments.learned import evaluate_run, markdown
+
+        report = evaluate_run(out, args.eval_episodes, args.validation_episodes, args.workers, log=tqdm.write,
+                              extra={"train_wall_s": wall})
+        print(markdown(report))
+        if config.bandwidth_range is None:  # one bandwidth: its references are comparable with the curve
+            ref = {k: v["mean_psnr"] for k, v in report["rows"][-1]["references"].items()}
+            plot_curves(rows, out / CURVE_FILE, ref)
+    print(f"run folder: {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
