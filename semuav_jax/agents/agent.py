@@ -1,0 +1,110 @@
+"""A trained DDQN as one object, the way SB3 users handle a model (docs/ddqn.md, "Agent object"):
+``Agent.load(path)`` / ``agent.save(path)`` (config, scenario and weights in one file),
+``agent.act(state)`` (the BS's command for one ``EnvState``, through the shield) and
+:func:`evaluate` (means with 95 % intervals over test layouts).
+
+    from semuav_jax.agents.agent import Agent, evaluate
+    agent = Agent.shipped(seed=0)
+    print(evaluate(agent, agent.params.replace(B=25e3), episodes=200))
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import serialization
+
+from semuav_jax.agents.ddqn import DDQNConfig, QNetwork, agent_input, command, num_actions
+from semuav_jax.agents.evaluate import seed_metrics
+from semuav_jax.agents.runs import load_run, run_params, shipped_folder
+from semuav_jax.io import atomic_write
+from semuav_jax.keys import TEST_SEED, episode_keys
+from semuav_jax.params import EnvParams
+from semuav_jax.stats import mean_ci, wilson_interval
+
+FORMAT = "semuav-jax agent 1"
+
+
+@dataclass(frozen=True)
+class Agent:
+    """One trained seed: ``run`` is the run description (config.json of a train.py run: scenario,
+    command, DDQNConfig), ``weights`` the Q-network's parameters."""
+
+    run: dict
+    weights: Any
+
+    @property
+    def config(self) -> DDQNConfig:
+        return DDQNConfig.from_dict(self.run["ddqn"])
+
+    @property
+    def params(self) -> EnvParams:
+        """The EnvParams the agent was trained with (B: the scenario's; the agent takes any B in its range)."""
+        return run_params(self.run)
+
+    @property
+    def network(self) -> QNetwork:
+        return QNetwork(num_actions(self.params, self.config), tuple(self.config.hidden))
+
+    @classmethod
+    def from_run(cls, folder, seed: int = 0) -> "Agent":
+        """Seed ``seed`` of a finished ``train.py`` run folder."""
+        run, _, nets = load_run(folder)
+        if not 0 <= seed < run["seeds"]:
+            raise ValueError(f"{folder} has seeds 0..{run['seeds'] - 1}, got seed={seed}")
+        return cls(run, jax.tree.map(lambda w: jnp.asarray(w[seed]), nets))
+
+    @classmethod
+    def shipped(cls, seed: int = 0) -> "Agent":
+        """A seed of the shipped agent (semuav_jax/data/agent, the output of ``python train.py``)."""
+        return cls.from_run(shipped_folder(), seed)
+
+    def save(self, path) -> Path:
+        """One file: the run description and the weights (msgpack), written atomically."""
+        blob = {"format": FORMAT, "run": json.dumps(self.run), "weights": jax.tree.map(np.asarray, self.weights)}
+        return atomic_write(path, serialization.msgpack_serialize(blob))
+
+    @classmethod
+    def load(cls, path) -> "Agent":
+        """The agent saved by :meth:`save`; ValueError (one line) for any other file."""
+        try:
+            blob = serialization.msgpack_restore(Path(path).read_bytes())
+            assert isinstance(blob, dict) and blob.get("format") == FORMAT
+            run = json.loads(blob["run"])
+        except FileNotFoundError:
+            raise
+        except Exception:
+            raise ValueError(f"{path} is not a semuav-jax agent file (saved by Agent.save)") from None
+        return cls(run, jax.tree.map(jnp.asarray, blob["weights"]))
+
+    def q_values(self, state, params: EnvParams | None = None):
+        """Q-values of every action for one ``EnvState`` (jittable)."""
+        params = self.params if params is None else params
+        return self.network.apply(self.weights, agent_input(state, params, self.config))
+
+    def act(self, state, params: EnvParams | None = None):
+        """The BS's command for one ``EnvState``: (action after the shield, acceleration (2,)) for
+        ``semuav_jax.env.transition`` (jittable; greedy, epsilon = 0)."""
+        params = self.params if params is None else params
+        return command(jnp.argmax(self.q_values(state, params)), state, params, self.config)
+
+
+def evaluate(agent: Agent, params: EnvParams | None = None, episodes: int = 1000, seed: int = TEST_SEED) -> dict:
+    """The agent's greedy policy on ``episodes`` random layouts (``keys.episode_keys(seed, episodes)``):
+    {metric: (mean, 95 % half-width)} for mean_psnr, coverage, shield_share (t intervals) and
+    arrived (mean, Wilson interval)."""
+    params = agent.params if params is None else params
+    if episodes < 2:
+        raise ValueError(f"episodes must be >= 2, got {episodes}")
+    nets = jax.tree.map(lambda w: w[None], agent.weights)
+    m = seed_metrics(agent.network, nets, agent.config, episode_keys(seed, episodes), params, (params.B,))
+    out = {k: mean_ci(m[k][0, 0]) for k in ("mean_psnr", "coverage", "shield_share")}
+    p = float(np.mean(m["arrived"][0, 0]))
+    out["arrived"] = (p, tuple(float(x) for x in wilson_interval(p, episodes)))
+    return out
