@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from semuav_jax.params import EnvParams
+from semuav_jax.params import EnvParams, params_valid
 
 METRICS = ("mean_psnr", "coverage", "psnr_visited", "symbol_fraction", "arrived", "mission_time", "return")
 
@@ -13,11 +13,13 @@ def episode_metrics(state, params: EnvParams) -> dict:
     """Metrics of one finished episode from its final ``EnvState``.
 
     psnr_visited is the mean PSNR over covered devices (m_n > 0); 0 when none is covered, so it
-    is never NaN (average it only over episodes with coverage > 0).
+    is never NaN (average it only over episodes with coverage > 0). ``valid`` is False when a
+    parameter traced inside ``jit``/``vmap`` is out of range (``params.params_valid``): the other
+    metrics are then NaN, never a believable number.
     """
     covered = state.m > 0
     n_cov = jnp.sum(covered)
-    return {
+    m = {
         "mean_psnr": jnp.mean(state.phi),
         "coverage": n_cov,
         "psnr_visited": jnp.sum(jnp.where(covered, state.phi, 0.0)) / jnp.maximum(n_cov, 1),
@@ -26,3 +28,5 @@ def episode_metrics(state, params: EnvParams) -> dict:
         "mission_time": state.t * params.tau,
         "return": state.ret,
     }
+    valid = params_valid(params)
+    return {k: v & valid if k == "arrived" else jnp.where(valid, v, jnp.nan) for k, v in m.items()} | {"valid": valid}

@@ -124,9 +124,33 @@ _STATIC = ("K", "M", "levels", "reward_mode", "layout")
 # (name, lower bound, inclusive?) for the positive scalars; checked on every entry of a sweep.
 _POSITIVE = (
     "Lx", "Ly", "tau", "H", "P_n", "noise", "B", "r_arr", "a_max", "v_max",
-    "P_b", "B_b", "L_cmd", "beta", "f_c", "c",
+    "P_b", "B_b", "L_cmd", "beta", "f_c", "c", "eps",
 )
-_NON_NEGATIVE = ("proc_max", "bs_h", "r_g", "P_miss", "kappa_d", "kappa_c", "eps", "airspace_margin")
+_NON_NEGATIVE = ("proc_max", "bs_h", "r_g", "P_miss", "kappa_d", "kappa_c", "airspace_margin")
+_MAY_BE_INF = ("device_img", "airspace_margin")
+
+
+def params_valid(params: EnvParams):
+    """Traced bool: the checks of :func:`validate_params` that traced values can fail (finite,
+    positive, D_com > H, image indices in range). ``episode_metrics`` reports it as ``valid``,
+    since a value inside ``jit``/``vmap`` cannot raise."""
+    ok = jnp.asarray(True)
+    for name in params.__dataclass_fields__:
+        if name in _STATIC or name in _MAY_BE_INF:
+            continue
+        ok &= jnp.all(jnp.isfinite(jnp.asarray(getattr(params, name), jnp.float32)))
+    for name in _POSITIVE:
+        ok &= jnp.all(jnp.asarray(getattr(params, name)) > 0)
+    for name in _NON_NEGATIVE:
+        ok &= jnp.all(jnp.asarray(getattr(params, name)) >= 0)
+    ok &= jnp.all(params.D_com > params.H)
+    img = jnp.asarray(params.device_img)
+    return ok & jnp.all((img >= 0) & (img < params.C.shape[0]))
+
+
+def _float32(v):
+    with np.errstate(over="ignore"):
+        return np.asarray(v, np.float32)
 
 
 def _concrete(x):
@@ -145,10 +169,12 @@ def validate_params(params: EnvParams) -> None:
     for name, value, lo in (("K", params.K, 1), ("M", params.M, 1), ("levels", params.levels, 2)):
         if not isinstance(value, (int, np.integer)) or value < lo:
             raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
+    if params.device_pos.shape[-2] < 1:
+        raise ValueError(f"N must be >= 1 device, got {params.device_pos.shape[-2]}")
     vals = {k: _concrete(getattr(params, k)) for k in params.__dataclass_fields__ if k not in _STATIC}
     for name, v in vals.items():
-        if v is not None and name not in ("device_img", "airspace_margin") and not np.all(np.isfinite(v)):
-            raise ValueError(f"{name} must be finite, got {v}")
+        if v is not None and name not in _MAY_BE_INF and not np.all(np.isfinite(_float32(v))):
+            raise ValueError(f"{name} must be finite (in float32, |x| < 3.4e38), got {v}")
     for name in _POSITIVE:
         v = vals[name]
         if v is not None and not np.all(v > 0):
@@ -183,3 +209,9 @@ def validate_params(params: EnvParams) -> None:
                 raise ValueError(f"device_img must have shape (N,) = ({params.N},), got {img.shape}")
             if not np.all((img >= 0) & (img < C.shape[-2])):
                 raise ValueError(f"device_img must index an image in [0, {C.shape[-2] - 1}], got {img}")
+    if all(v is not None for v in vals.values()) and np.ndim(vals["B"]) == 0:
+        from semuav_jax import channel  # channel imports this module
+
+        r = np.asarray(channel.rate(0.0, params.H, params.P_n, params.B, params))
+        if not np.isfinite(r):
+            raise ValueError(f"the devices' rate (eq. 2.6) overflows float32 at P_n = {params.P_n} W, B = {params.B} Hz")

@@ -40,6 +40,10 @@ def test_defaults_match_model_md(params):
         ({"B": np.array([5e3, -1.0])}, "B"),
         ({"airspace_margin": -1.0}, "airspace_margin"),
         ({"airspace_margin": float("nan")}, "airspace_margin"),
+        ({"N": 0}, "N must be >= 1"),
+        ({"eps": 0.0, "reward_mode": "paper"}, "eps must be > 0"),
+        ({"P_n": 1e300}, "P_n must be finite"),  # finite in float64, inf in float32
+        ({"P_n": 1e38}, "overflows float32"),  # finite, but the rate of eq. 2.6 is not
     ],
 )
 def test_bad_parameter_names_itself(curves, override, name):

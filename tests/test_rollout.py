@@ -91,3 +91,22 @@ def test_rollout_validates_params(params):
         rollout(toward_goal, keys, params.replace(B=-1.0), policy_state=jnp.zeros((2, 2)))
     with pytest.raises(ValueError, match="keys"):
         rollout(toward_goal, jnp.zeros(3), params, policy_state=jnp.zeros((3, 2)))
+
+
+@pytest.mark.parametrize("bad", [{"B": -1.0}, {"B": 0.0}, {"B": float("nan")}, {"tau": 0.0}, {"v_max": float("nan")},
+                                 {"device_img": jnp.full(10, 99, jnp.int32)}])
+def test_traced_bad_value_is_flagged_never_a_number(params, bad):
+    """Inside jit a bad value cannot raise: the metrics say valid = False and carry NaN, not a believable number."""
+    keys = jax.random.split(jax.random.key(0), 3)
+    name, value = next(iter(bad.items()))
+
+    @jax.jit
+    def run(x):
+        return jax.vmap(lambda k: episode(toward_goal, k, params.replace(**{name: x}), policy_state=jnp.zeros(2))[0])(keys)
+
+    good = run(getattr(params, name))
+    assert bool(np.all(good["valid"])) and np.all(np.isfinite(good["mean_psnr"]))
+    m = run(jnp.asarray(value, getattr(params, name).dtype if hasattr(getattr(params, name), "dtype") else jnp.float32))
+    assert not np.any(m["valid"]) and not np.any(m["arrived"])
+    for k in ("mean_psnr", "coverage", "return", "mission_time"):
+        assert np.all(np.isnan(m[k])), k

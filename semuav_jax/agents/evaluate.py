@@ -64,6 +64,8 @@ def seed_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams, ban
     (weights with a leading seed axis) at every B, in one jitted program vmapped over seeds and B
     and sharded over the host's devices."""
     validate_params(params)
+    if not all(0 < b < float("inf") for b in np.asarray(bandwidths, np.float64).ravel()):
+        raise ValueError(f"bandwidths must be finite and > 0 Hz, got {bandwidths}")
     E = len(keys)
     skeys = shard_episodes(keys)
     policy = greedy_policy(network, config)
