@@ -14,8 +14,8 @@ def episode_metrics(state, params: EnvParams) -> dict:
 
     psnr_visited is the mean PSNR over covered devices (m_n > 0); 0 when none is covered, so it
     is never NaN (average it only over episodes with coverage > 0). ``valid`` is False when a
-    parameter traced inside ``jit``/``vmap`` is out of range (``params.params_valid``): the other
-    metrics are then NaN, never a believable number.
+    parameter traced inside ``jit``/``vmap`` is out of range (``params.params_valid``) or the
+    state overflowed float32: the other metrics are then NaN, never a believable number.
     """
     covered = state.m > 0
     n_cov = jnp.sum(covered)
@@ -28,5 +28,6 @@ def episode_metrics(state, params: EnvParams) -> dict:
         "mission_time": state.t * params.tau,
         "return": state.ret,
     }
-    valid = params_valid(params)
+    finite = [jnp.all(jnp.isfinite(x)) for x in (state.q, state.v, state.m, state.phi, state.ret)]
+    valid = params_valid(params) & jnp.all(jnp.stack(finite))
     return {k: v & valid if k == "arrived" else jnp.where(valid, v, jnp.nan) for k, v in m.items()} | {"valid": valid}

@@ -209,9 +209,3 @@ def validate_params(params: EnvParams) -> None:
                 raise ValueError(f"device_img must have shape (N,) = ({params.N},), got {img.shape}")
             if not np.all((img >= 0) & (img < C.shape[-2])):
                 raise ValueError(f"device_img must index an image in [0, {C.shape[-2] - 1}], got {img}")
-    if all(v is not None for v in vals.values()) and np.ndim(vals["B"]) == 0:
-        from semuav_jax import channel  # channel imports this module
-
-        r = np.asarray(channel.rate(0.0, params.H, params.P_n, params.B, params))
-        if not np.isfinite(r):
-            raise ValueError(f"the devices' rate (eq. 2.6) overflows float32 at P_n = {params.P_n} W, B = {params.B} Hz")

@@ -73,10 +73,14 @@ def rollout(policy: Policy, keys, params: EnvParams, policy_state=None, init_sta
     ``policy_state`` carries a leading episode axis, or is shared by all episodes with
     ``state_axes=None`` (e.g. network weights); ``init_state`` (optional) has an episode axis.
     Returns ``(metrics, trace)``: a dict of (E,) arrays (MODEL.md section 8) and, with
-    ``trace=True``, a dict of (E, K, ...) per-slot arrays (else None). Parameters are validated first.
+    ``trace=True``, a dict of (E, K, ...) per-slot arrays (else None). Parameters are validated first;
+    a state that overflowed float32 is a ValueError (inside an outer ``jit``: ``valid`` is False).
     """
     validate_params(params)
     keys = jnp.asarray(keys)
     if keys.ndim != 2 and not jax.dtypes.issubdtype(keys.dtype, jax.dtypes.prng_key):
         raise ValueError(f"keys must be a batch of PRNG keys (E, 2), got shape {keys.shape}")
-    return _rollout(policy, keys, params, policy_state, init_state, trace, state_axes)
+    metrics, tr = _rollout(policy, keys, params, policy_state, init_state, trace, state_axes)
+    if not isinstance(metrics["valid"], jax.core.Tracer) and not bool(jnp.all(metrics["valid"])):
+        raise ValueError("the simulation left float32 (a rate, power or return overflowed): check the parameters' scale")
+    return metrics, tr

@@ -87,6 +87,8 @@ def test_metrics_by_hand(curves):
 
 def test_rollout_validates_params(params):
     keys = jax.random.split(jax.random.key(0), 2)
+    with pytest.raises(ValueError, match="overflowed"):  # P_n is finite in float32, the rate of eq. 2.6 is not
+        rollout(toward_goal, keys, params.replace(P_n=1e38), policy_state=jnp.zeros((2, 2)))
     with pytest.raises(ValueError, match="B must be > 0"):
         rollout(toward_goal, keys, params.replace(B=-1.0), policy_state=jnp.zeros((2, 2)))
     with pytest.raises(ValueError, match="keys"):
