@@ -1,9 +1,9 @@
-"""The environment of MODEL.md section 3, in gymnax's functional style.
+"""The environment of MODEL.md section 3, as a gymnax 1.0 environment.
 
 ``transition`` is one slot driven by a continuous acceleration (what the baselines command);
-``SemUAVEnv.step_env`` maps a discrete action index onto it (what the DDQN commands) and
-``SemUAVEnv.step`` adds gymnax's auto-reset. Everything is pure and jittable; the
-interface follows gymnax 0.0.8 (``step`` returns ``obs, state, reward, done, info``).
+``SemUAVEnv.step_env`` maps a discrete action index onto it (eq. 6.1) and gymnax's
+``Environment.step`` adds the auto-reset. Everything is pure and jittable. ``make`` builds the
+environment and its parameters by id, like ``gymnax.make``.
 """
 
 from __future__ import annotations
@@ -11,12 +11,15 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 from flax import struct
+from gymnax.environments import environment, spaces
 
-from semuav_jax import channel, kinematics, quality, spaces
+from semuav_jax import channel, kinematics, quality
 from semuav_jax.actions import action_to_accel
 from semuav_jax.observation import obs_bounds, obs_size, observation
 from semuav_jax.params import EnvParams, make_params
 from semuav_jax.reward import reward
+
+ENV_ID = "SemUAV-v0"
 
 
 @struct.dataclass
@@ -123,8 +126,17 @@ def transition_u(u, state: EnvState, accel, params: EnvParams):
     return frozen, jnp.where(state.done, 0.0, rew)
 
 
-class SemUAVEnv:
-    """gymnax-style environment (gymnax 0.0.8 ``Environment`` interface) with a discrete action table."""
+class SemUAVEnv(environment.Environment[EnvState, EnvParams]):
+    """gymnax ``Environment`` over the paper's action table (eq. 6.1), observation eq. 5.1.
+
+    ``step(key, state, action, params)`` (inherited) returns ``(obs, state, reward, terminated,
+    truncated, info)`` and resets on the end of an episode. ``terminated`` is ``state.done``
+    (eq. 3.9): arrival, t = K, or leaving the airspace (eq. 3.10). Reaching t = K is a true
+    terminal, not a time-limit truncation: the time left (K - t)/K is part of the observation
+    (eq. 5.1) and the miss is penalized in that slot (eq. 4.5), so nothing lies beyond t = K to
+    bootstrap from; ``truncated`` is always False. ``info`` holds ``discount``, ``arrived`` and
+    ``delay`` (eq. 3.1), plus gymnax's ``terminated``, ``truncated`` and ``final_observation``.
+    """
 
     def __init__(self, params: EnvParams | None = None):
         self._params = params
@@ -137,16 +149,16 @@ class SemUAVEnv:
 
     @property
     def name(self) -> str:
-        return "SemUAV-v0"
+        return ENV_ID
 
     @property
     def num_actions(self) -> int:
         return self.default_params.num_actions
 
-    def action_space(self, params: EnvParams | None = None):
+    def action_space(self, params: EnvParams | None = None) -> spaces.Discrete:
         return spaces.Discrete((params or self.default_params).num_actions)
 
-    def observation_space(self, params: EnvParams | None = None):
+    def observation_space(self, params: EnvParams | None = None) -> spaces.Box:
         params = params or self.default_params
         low, high = obs_bounds(params)
         return spaces.Box(low, high, (obs_size(params),), jnp.float32)
@@ -154,11 +166,11 @@ class SemUAVEnv:
     def get_obs(self, state: EnvState, params: EnvParams | None = None, key=None):
         return observation(state, params or self.default_params)
 
-    def is_terminal(self, state: EnvState, params: EnvParams | None = None):
+    def is_terminated(self, state: EnvState, params: EnvParams | None = None):
         return state.done
 
-    def discount(self, state: EnvState, params: EnvParams | None = None):
-        return jnp.where(state.done, 0.0, 1.0)
+    def is_truncated(self, state: EnvState, params: EnvParams | None = None):
+        return jnp.zeros((), bool)
 
     def reset_env(self, key, params: EnvParams):
         state = reset_state(key, params)
@@ -166,18 +178,13 @@ class SemUAVEnv:
 
     def step_env(self, key, state: EnvState, action, params: EnvParams):
         new, rew = transition(key, state, action_to_accel(action, params), params)
-        info = {"discount": self.discount(new), "arrived": new.arrived, "delay": new.delay}
+        info = {"discount": self.discount(new, params), "arrived": new.arrived, "delay": new.delay}
         return observation(new, params), new, rew, new.done, info
 
-    def reset(self, key, params: EnvParams | None = None):
-        return self.reset_env(key, params or self.default_params)
 
-    def step(self, key, state: EnvState, action, params: EnvParams | None = None):
-        """gymnax ``step``: ``step_env`` then auto-reset on ``done`` (the reset uses a split key)."""
-        params = params or self.default_params
-        key, key_reset = jax.random.split(key)
-        obs_st, state_st, rew, done, info = self.step_env(key, state, action, params)
-        obs_re, state_re = self.reset_env(key_reset, params)
-        state = jax.tree.map(lambda r, s: jax.lax.select(done, r, s), state_re, state_st)
-        obs = jax.lax.select(done, obs_re, obs_st)
-        return obs, state, rew, done, info
+def make(env_id: str, **params) -> tuple[SemUAVEnv, EnvParams]:
+    """``(env, env_params)`` for an environment id, as ``gymnax.make``; ``params`` are ``make_params`` overrides."""
+    if env_id != ENV_ID:
+        raise ValueError(f"unknown environment id {env_id!r}; known ids: {ENV_ID}")
+    env = SemUAVEnv(make_params(**params))
+    return env, env.default_params

@@ -36,5 +36,10 @@ def curves_hash(C) -> str:
     return hashlib.sha256(np.ascontiguousarray(np.asarray(C, np.float32)).tobytes()).hexdigest()
 
 
+def file_hash(path) -> str:
+    """sha256 of a file's bytes."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
 def provenance(params) -> dict:
     return {"version": version(), "commit": git_commit(), "curves_sha256": curves_hash(params.C)}

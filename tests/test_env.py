@@ -245,9 +245,10 @@ def test_gymnax_interface(params):
     step = jax.jit(e.step)
     for t in range(300):  # longer than K: the auto-reset must kick in
         key, k1, k2 = jax.random.split(key, 3)
-        obs, state, r, done, info = step(k1, state, e.action_space(params).sample(k2), params)
+        obs, state, r, terminated, truncated, info = step(k1, state, e.action_space(params).sample(k2), params)
         assert bool(e.observation_space(params).contains(obs)) and np.isfinite(float(r))
-        if bool(done):
+        assert not bool(truncated)  # t = K is a true terminal (docs/env_api.md)
+        if bool(terminated):
             assert int(state.t) == 0 and float(info["discount"]) == 0.0
             break
     else:

@@ -35,18 +35,22 @@ def test_behaviour_by_hand(params):
 
 
 @pytest.fixture(scope="module")
-def reduced(curves):
+def reduced(curves, tmp_path_factory):
     params = scenario_params("random", curves, reward_mode="gain")
     fixed = scenario_params("fixed", curves, reward_mode="gain")
     config = DDQNConfig(num_envs=4, total_steps=4 * 250, learning_starts=64, batch_size=16, buffer_size=500)
     tr = make_train(config, params)
     nets = jax.vmap(tr.init)(jax.random.split(jax.random.key(0), 2)).params  # two untrained seeds
-    run = lambda: fig2.run(tr.network, nets, config, params, fixed, GRID, workers=1, log=lambda m: None)
-    return params, run(), run()
+    run = lambda stages=None: fig2.run(tr.network, nets, config, params, fixed, GRID, workers=1, log=lambda m: None,
+                                       stages=stages)
+    folder, logged = tmp_path_factory.mktemp("stages"), []
+    saved = run(fig2.Stages(folder, {"grid": GRID}, log=lambda m: None))
+    resumed = run(fig2.Stages(folder, {"grid": GRID}, log=logged.append))
+    return params, run(), saved, resumed, logged
 
 
 def test_reduced_run_properties(reduced):
-    params, r, _ = reduced
+    params, r, *_ = reduced
     assert [row["B"] for row in r["panel_a"]] == [5e3, 25e3] and r["seeds"] == 2
     for row in r["panel_a"]:
         assert row["agent_arrived"] == 1.0  # the shield brings even an untrained agent home
@@ -67,16 +71,28 @@ def test_reduced_run_properties(reduced):
     assert "DDQN − greedy v_b*" in text and "speed while a device transmits" in text
 
 
-def test_identical_under_fixed_keys(reduced):
-    _, a, b = reduced
-    a, b = ({k: v for k, v in x.items() if k != "paths"} for x in (a, b))
-    assert json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
+def test_identical_under_fixed_keys_and_after_resuming(reduced):
+    """A second run gives the same numbers, and so does one that loads every saved step."""
+    _, a, b, c, logged = reduced
+    a, b, c = (json.dumps({k: v for k, v in x.items() if k != "paths"}, sort_keys=True) for x in (a, b, c))
+    assert a == b == c
+    assert len(logged) == fig2.stage_count(GRID)
+    assert all(m.endswith("(saved before)") for m in logged[:-1]) and logged[-1] == "paths on the paper layout"
+
+
+def test_saved_steps_of_another_key_are_dropped(tmp_path):
+    (tmp_path / "agent_evaluated.msgpack").write_bytes(b"old")
+    fig2.Stages(tmp_path, {"grid": 1})
+    assert not (tmp_path / "agent_evaluated.msgpack").exists()
+    (tmp_path / "agent_evaluated.msgpack").write_bytes(b"same key")
+    fig2.Stages(tmp_path, {"grid": 1})
+    assert (tmp_path / "agent_evaluated.msgpack").exists()
 
 
 def test_figures(reduced, tmp_path):
     from semuav_jax import figures
 
-    params, r, _ = reduced
+    params, r, *_ = reduced
     figures.fig2a(r, tmp_path / "a.png")
     figures.fig2b(r, tmp_path / "b.png")
     figures.fig2c(r["paths"], scenario_params("fixed").replace(B=25e3), tmp_path / "c.png")

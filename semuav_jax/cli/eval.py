@@ -85,12 +85,12 @@ def main(argv=None) -> int:
 
     from semuav_jax import figures
     from semuav_jax.agents.ddqn import make_train
-    from semuav_jax.agents.runs import load_run
+    from semuav_jax.agents.runs import MODEL_FILE, load_run
     from semuav_jax.agents.scenarios import scenario_params
     from semuav_jax.curves import load_curves
     from semuav_jax.experiments import fig2
     from semuav_jax.io import atomic_write
-    from semuav_jax.provenance import provenance
+    from semuav_jax.provenance import file_hash, provenance
 
     out = Path(args.out)
     t0 = time.time()
@@ -107,13 +107,15 @@ def main(argv=None) -> int:
     train_s = time.time() - t0
     print(f"agent: {folder} ({jax.tree.leaves(nets)[0].shape[0]} seeds); JAX devices: {jax.device_count()}")
     network = make_train(config, params).network
-    stages = 6
-    with tqdm(total=stages, desc="Fig. 2", unit="stage", dynamic_ncols=True) as bar:
+    key = {"grid": args.grid, "agent": str(folder.resolve()), "weights_sha256": file_hash(folder / MODEL_FILE),
+           **provenance(params)}
+    with tqdm(total=fig2.stage_count(args.grid), desc="Fig. 2", unit="step", dynamic_ncols=True) as bar:
         def log(msg):
             bar.write(msg)
             bar.update(1)
-        r = fig2.run(network, nets, config, params, fixed, args.grid, args.workers, log=log)
-        bar.update(stages - bar.n)
+        # each step is saved in OUT/stages: an interrupted run continues at the first step not done
+        stages = fig2.Stages(out / "stages", key, log)
+        r = fig2.run(network, nets, config, params, fixed, args.grid, args.workers, stages=stages)
     r.update(agent=str(folder), agent_command=run.get("command"), train_s=train_s, eval_s=time.time() - t0 - train_s,
              devices=jax.device_count(), grid={k: list(v) if isinstance(v, tuple) else v for k, v in args.grid.items()},
              **provenance(params))

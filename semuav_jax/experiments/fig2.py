@@ -14,16 +14,21 @@ transmitting and otherwise, dwell and symbols per served device, devices covered
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import jax
 import jax.numpy as jnp
 import numpy as np
+from flax import serialization
 
 from baselines import DEFAULT_V_B, init_state, sweep, tsp_ranks
-from baselines.planner import make_plans, planner
+from baselines.planner import PlanState, make_plans, planner
 from baselines.policies import POLICIES
 from baselines.report import flights, tune
 from semuav_jax.agents.ddqn import DDQNConfig
 from semuav_jax.agents.evaluate import agent_state, greedy_policy, seed_metrics
+from semuav_jax.io import atomic_write
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams
 from semuav_jax.rollout import rollout
@@ -98,20 +103,77 @@ def path(trace: dict, metrics: dict, i: int, params: EnvParams) -> dict:
     return {"q": q, "speed": v, "dwell_s": dwell, **{k: float(np.asarray(m)[i]) for k, m in metrics.items()}}
 
 
+class Stages:
+    """The steps of :func:`run`, each logged and saved to ``folder/<name>.msgpack`` when done (``folder`` None:
+    nothing saved), so an interrupted run continues at the first step not done. ``key`` (JSON-able:
+    grid, agent, curves) is kept beside them; saved steps of another key are deleted first."""
+
+    def __init__(self, folder, key: dict, log=print):
+        self.folder, self.log = (None if folder is None else Path(folder)), log
+        if self.folder is None:
+            return
+        self.folder.mkdir(parents=True, exist_ok=True)
+        stamp = self.folder / "key.json"
+        text = json.dumps(key, sort_keys=True, default=str)
+        if not stamp.is_file() or stamp.read_text() != text:
+            for f in self.folder.glob("*.msgpack"):
+                f.unlink()
+            atomic_write(stamp, text.encode())
+
+    def __call__(self, name: str, compute, save=lambda x: x, load=lambda x: x, describe=lambda out: ""):
+        path = None if self.folder is None else self.folder / (name.split(" (")[0].replace(" ", "_") + ".msgpack")
+        if path is not None and path.is_file():
+            out = load(serialization.msgpack_restore(path.read_bytes()))
+            self.log(f"{name}{describe(out)} (saved before)")
+            return out
+        out = compute()
+        if path is not None:
+            atomic_write(path, serialization.msgpack_serialize(_packable(save(out))))
+        self.log(name + describe(out))
+        return out
+
+
+def _packable(x):
+    """x with tuples as lists and NumPy scalars as Python numbers (what msgpack takes); a restored
+    step compares equal in JSON."""
+    if isinstance(x, dict):
+        return {k: _packable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_packable(v) for v in x]
+    if isinstance(x, np.generic):
+        return x.item()
+    return np.asarray(x) if isinstance(x, jax.Array) else x
+
+
+def stage_count(grid: dict) -> int:
+    """How many steps :func:`run` logs for ``grid`` (a progress bar's total)."""
+    sweep_B = set(grid["bandwidths"]) | {PANEL_B}
+    return 6 + len(sweep_B) + len({min(sweep_B), PANEL_B})
+
+
+def _plan_dict(plan) -> dict:
+    return {f: np.asarray(getattr(plan, f)) for f in plan.__dataclass_fields__}
+
+
 def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, grid: dict, workers: int = 2,
-        log=print) -> dict:
-    """Every number and path of Fig. 2 (JSON-ready except the paths' arrays)."""
+        log=print, stages: Stages | None = None) -> dict:
+    """Every number and path of Fig. 2 (JSON-ready except the paths' arrays). ``stages`` saves each
+    step so that an interrupted run resumes (default: nothing saved)."""
+    stage = stages or Stages(None, {}, log)
+    log = stage.log
     bandwidths, velocities = tuple(grid["bandwidths"]), tuple(grid["velocities"])
     sweep_B = tuple(sorted(set(bandwidths) | {PANEL_B}))
     keys = episode_keys(TEST_SEED, grid["layouts"])
-    tuned = tune(params, sweep_B, grid["validation_layouts"], workers=workers)
-    log("v_b* on validation layouts: " + ", ".join(f"{n} {tuned[n]['v_star']}" for n in ("greedy", "tsp")))
-    rank = tsp_ranks(keys, params, workers=workers)  # the TSP order does not depend on B: solved once
-    plans = [make_plans(keys, params.replace(B=b), workers=workers) for b in sweep_B]
-    refs = flights(params, keys, tuned, sweep_B, workers, rank=rank, plans=plans)
-    log("references flown (greedy, TSP at 8.9 m/s and v_b*; planner)")
-    agent = seed_metrics(network, nets, config, keys, params, sweep_B)
-    log("agent evaluated")
+    tuned = stage("v_b* on validation layouts", lambda: tune(params, sweep_B, grid["validation_layouts"], workers=workers),
+                  describe=lambda t: ": " + ", ".join(f"{n} {t[n]['v_star']}" for n in ("greedy", "tsp")))
+    # the TSP order does not depend on B: solved once
+    rank = stage("TSP tours", lambda: np.asarray(tsp_ranks(keys, params, workers=workers)))
+    plans = [stage(f"planner at {b / 1e3:g} kHz", lambda b=b: make_plans(keys, params.replace(B=b), workers=workers),
+                   save=_plan_dict, load=lambda d: PlanState(**{k: jnp.asarray(v) for k, v in d.items()}))
+             for b in sweep_B]
+    refs = stage("references flown (greedy, TSP at 8.9 m/s and v_b*; planner)",
+                 lambda: flights(params, keys, tuned, sweep_B, workers, rank=rank, plans=plans))
+    agent = stage("agent evaluated", lambda: seed_metrics(network, nets, config, keys, params, sweep_B))
     out = {"layouts": len(keys), "test_seed": TEST_SEED, "validation_seed": VALIDATION_SEED,
            "validation_layouts": grid["validation_layouts"], "tuning": tuned, "bandwidths": list(sweep_B),
            "velocities": list(velocities), "seeds": int(agent["mean_psnr"].shape[0]), "panel_a": [], "panel_b": {}}
@@ -127,11 +189,36 @@ def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, 
             row[f"agent minus {name}"] = mean_ci([mean_ci(agent["mean_psnr"][s, j] - m["mean_psnr"])[0]
                                                   for s in range(out["seeds"])])
         out["panel_a"].append(row)
+    out["panel_b"] = stage("panel (b) swept", lambda: panel_b(keys, params, velocities, rank))
+    out["behaviour"] = {}
+    for b in sorted({min(sweep_B), PANEL_B}):
+        ib = sweep_B.index(b)
+        tuned_at_b = {n: tuned[n]["v_star"][ib] for n in ("greedy", "tsp")}
+        at_b = params.replace(B=b)
+
+        def measure(at_b=at_b, tuned_at_b=tuned_at_b, ib=ib):
+            runs = traced_runs(network, nets, config, keys, at_b, tuned_at_b, workers, rank=rank, plan=plans[ib])
+            return {name: summarize(behaviour(tr, at_b)) for name, (_, tr) in runs.items()}
+
+        out["behaviour"][f"{b / 1e3:g} kHz"] = stage(f"behaviour at {b / 1e3:g} kHz", measure)
+    pf = fixed.replace(B=PANEL_B)
+    one = episode_keys(TEST_SEED, 1)
+    paths = traced_runs(network, jax.tree.map(lambda x: x[:1], nets), config, one, pf, tuned_at_b, workers=1)
+    out["paths"] = {name.replace(" seed 0", ""): path(tr, m, 0, pf) for name, (m, tr) in paths.items()
+                    if not name.endswith(f"{DEFAULT_V_B:g}")}
+    log("paths on the paper layout")
+    return out
+
+
+def panel_b(keys, params: EnvParams, velocities, rank) -> dict:
+    """Panel (b): greedy and TSP at B = PANEL_B vs their speed v_b: mean PSNR, arrival, coverage,
+    symbols per covered device."""
     pb = params.replace(B=PANEL_B)
+    out = {}
     for name in ("greedy", "tsp"):
         m = sweep(name, keys, pb, v_b=velocities, B=(PANEL_B,), rank=rank if name == "tsp" else None)
         per = lambda k: [m[k][0, i] for i in range(len(velocities))]
-        out["panel_b"][name] = {
+        out[name] = {
             "mean_psnr": [mean_ci(x) for x in per("mean_psnr")],
             "arrived": [float(x.mean()) for x in per("arrived")],
             "coverage": [float(x.mean()) for x in per("coverage")],
@@ -139,20 +226,6 @@ def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, 
             "symbols_per_covered": [float((f * pb.N).sum() / max(c.sum(), 1)) for f, c in
                                     zip(per("symbol_fraction"), per("coverage"))],
             "episodes": len(keys)}
-    log("panel (b) swept")
-    out["behaviour"] = {}
-    for b in sorted({min(sweep_B), PANEL_B}):
-        ib = sweep_B.index(b)
-        tuned_at_b = {n: tuned[n]["v_star"][ib] for n in ("greedy", "tsp")}
-        at_b = params.replace(B=b)
-        runs = traced_runs(network, nets, config, keys, at_b, tuned_at_b, workers, rank=rank, plan=plans[ib])
-        out["behaviour"][f"{b / 1e3:g} kHz"] = {name: summarize(behaviour(tr, at_b)) for name, (_, tr) in runs.items()}
-    log(f"behaviour measured at {min(sweep_B) / 1e3:g} and {PANEL_B / 1e3:g} kHz")
-    pf = fixed.replace(B=PANEL_B)
-    one = episode_keys(TEST_SEED, 1)
-    paths = traced_runs(network, jax.tree.map(lambda x: x[:1], nets), config, one, pf, tuned_at_b, workers=1)
-    out["paths"] = {name.replace(" seed 0", ""): path(tr, m, 0, pf) for name, (m, tr) in paths.items()
-                    if not name.endswith(f"{DEFAULT_V_B:g}")}
     return out
 
 

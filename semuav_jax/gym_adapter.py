@@ -1,0 +1,92 @@
+"""A Gymnasium ``Env`` around the functional :class:`~semuav_jax.env.SemUAVEnv` (docs/env_api.md).
+
+Importing this module registers it with Gymnasium as ``"SemUAV-v0"``, so
+``gymnasium.make("SemUAV-v0", B=5e3)`` works; keyword arguments are ``make_params`` overrides.
+"""
+
+from __future__ import annotations
+
+import gymnasium
+import jax
+import numpy as np
+
+from semuav_jax.env import ENV_ID, SemUAVEnv, make
+from semuav_jax.metrics import episode_metrics
+
+# The jitted functions take the parameters as an argument, so every adapter with the same static
+# parameters (K, M, N, ...) shares one compiled program; this instance only supplies the methods.
+_ENV = SemUAVEnv()
+
+
+@jax.jit
+def _reset(key, params):
+    key, k = jax.random.split(key)
+    obs, state = _ENV.reset_env(k, params)
+    return key, obs, state
+
+
+@jax.jit
+def _step(key, state, action, params):
+    key, k = jax.random.split(key)
+    k_step, _ = jax.random.split(k)  # the key gymnax's ``Environment.step(k, ...)`` steps with
+    obs, state, reward, terminated, info = _ENV.step_env(k_step, state, action, params)
+    return key, obs, state, reward, terminated, info
+
+
+_metrics = jax.jit(episode_metrics)
+
+
+class SemUAVGymEnv(gymnasium.Env):
+    """One SemUAV environment with Gymnasium's API: NumPy float32 observations (eq. 5.1),
+    ``Discrete`` actions (eq. 6.1), no auto-reset.
+
+    ``reset(seed=s)`` sets the JAX key ``jax.random.key(s)`` (without a seed, the first reset draws
+    one from ``np_random``, later ones continue the key chain); each reset and step splits one
+    key off it. With the same key chain and actions an episode equals one run with gymnax's
+    ``SemUAVEnv.reset``/``step`` until it ends. ``terminated`` is ``state.done`` (eq. 3.9, t = K
+    included, see :class:`SemUAVEnv`); ``truncated`` is always False. ``info`` holds
+    ``discount``, ``arrived`` and ``delay``; the final step adds the episode's metrics
+    (``metrics.episode_metrics``, eq. 8.1: ``mean_psnr``, ``coverage``, ``mission_time``, ...).
+    No rendering: ``render_mode`` must be None.
+    """
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, render_mode: str | None = None, **params):
+        if render_mode is not None:
+            raise ValueError(f"SemUAVGymEnv does not render; render_mode must be None, got {render_mode!r}")
+        env, self.env_params = make(ENV_ID, **params)
+        space = env.observation_space(self.env_params)
+        self.observation_space = gymnasium.spaces.Box(
+            np.asarray(space.low, np.float32), np.asarray(space.high, np.float32), space.shape, np.float32
+        )
+        self.action_space = gymnasium.spaces.Discrete(env.num_actions)
+        self.env_state = None
+        self._key = None
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        if seed is not None:
+            self._key = jax.random.key(seed)
+        elif self._key is None:
+            self._key = jax.random.key(int(self.np_random.integers(2**31)))
+        self._key, obs, self.env_state = _reset(self._key, self.env_params)
+        return np.array(obs), {}
+
+    def step(self, action):
+        if self.env_state is None:
+            raise RuntimeError("call reset() before step()")
+        if not self.action_space.contains(action):
+            raise ValueError(f"action must be an integer in [0, {self.action_space.n - 1}], got {action!r}")
+        self._key, obs, self.env_state, reward, terminated, info = _step(
+            self._key, self.env_state, np.int32(action), self.env_params
+        )
+        obs, reward, terminated, info = jax.device_get((obs, reward, terminated, info))
+        info = {k: v.item() for k, v in info.items()}
+        if terminated:
+            info |= {k: v.item() for k, v in jax.device_get(_metrics(self.env_state, self.env_params)).items()}
+        return np.array(obs), float(reward), bool(terminated), False, info
+
+
+if ENV_ID not in gymnasium.registry:
+    gymnasium.register(id=ENV_ID, entry_point="semuav_jax.gym_adapter:SemUAVGymEnv")
