@@ -319,5 +319,6 @@ def solve_batch(
         from baselines.workers import map_chunks  # not at top level: the workers load this file without the package
 
         batched = {"travel_s": travel_s, "service_s": service_s, "prize": prize, "budget_s": budget_s}
-        out = map_chunks(Path(__file__), "_solve_many", batched, {"time_limit_ms": time_limit_ms}, workers)
+        out = map_chunks(Path(__file__), "_solve_many", batched, {"time_limit_ms": time_limit_ms}, workers,
+                         desc="orienteering")
     return out["order"], out["option"], out["value"]

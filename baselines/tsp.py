@@ -81,7 +81,7 @@ def solve_orders(
     from baselines.workers import map_chunks  # not at top level: the workers load this file without the package
 
     shared = {"q0": q0, "q_fin": q_fin, "time_limit_ms": time_limit_ms}
-    return map_chunks(Path(__file__), "_worker_batch", {"dev_pos": dev_pos}, shared, workers)["orders"]
+    return map_chunks(Path(__file__), "_worker_batch", {"dev_pos": dev_pos}, shared, workers, desc="TSP tours")["orders"]
 
 
 def _worker_batch(dev_pos, q0, q_fin, time_limit_ms) -> dict:

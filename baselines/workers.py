@@ -4,7 +4,8 @@
 npz on stdin and reads the function's arrays back as an npz from stdout. The worker loads the module
 by its file path, not as ``baselines.<name>`` (the package ``__init__`` imports JAX): such a module
 must import nothing from ``baselines`` at top level. Unlike a multiprocessing pool this needs no
-``__main__`` guard in the caller and never forks JAX.
+``__main__`` guard in the caller and never forks JAX. A worker runs its chunk in pieces of
+``PIECE`` items and reports each on stderr, so the caller's progress bar moves while it solves.
 """
 
 from __future__ import annotations
@@ -13,8 +14,12 @@ import importlib.util
 import io
 import subprocess
 import sys
+import threading
 
 import numpy as np
+
+PIECE = 16  # items a worker solves between two progress reports
+SHARED = "__shared__"  # the npz entry naming the arrays that are not split into pieces
 
 
 def _npz_bytes(arrays: dict) -> bytes:
@@ -23,26 +28,49 @@ def _npz_bytes(arrays: dict) -> bytes:
     return buf.getvalue()
 
 
-def map_chunks(module_file, function: str, batched: dict, shared: dict | None = None, workers: int = 2) -> dict:
+def map_chunks(module_file, function: str, batched: dict, shared: dict | None = None, workers: int = 2,
+               desc: str | None = None) -> dict:
     """Run ``function(**chunk, **shared)`` on ``workers`` chunks of the leading axis of ``batched``.
 
     ``function`` returns a dict of arrays with the same leading axis; the chunks' results are
-    concatenated in order.
+    concatenated in order. A progress bar (``desc``, items done) moves as the workers report.
     """
+    from tqdm import tqdm
+
     batched = {k: np.asarray(v) for k, v in batched.items()}
     n = len(next(iter(batched.values())))
     bounds = [(int(idx[0]), int(idx[-1]) + 1) for idx in np.array_split(np.arange(n), max(1, workers)) if len(idx)]
     procs = [
-        subprocess.Popen([sys.executable, __file__, str(module_file), function], stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+        subprocess.Popen([sys.executable, __file__, str(module_file), function], stdin=subprocess.PIPE,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         for _ in bounds
     ]
+    bar = tqdm(total=n, desc=desc or function, unit="item", leave=False, dynamic_ncols=True)
+    errors = [[] for _ in procs]
+
+    def follow(proc, err):  # progress lines are item counts; anything else is kept for the error message
+        for line in proc.stderr:
+            text = line.decode(errors="replace").strip()
+            if text.isdigit():
+                bar.update(int(text))
+            elif text:
+                err.append(text)
+
+    readers = [threading.Thread(target=follow, args=(p, e), daemon=True) for p, e in zip(procs, errors)]
+    for r in readers:
+        r.start()
     for proc, (lo, hi) in zip(procs, bounds):  # all started first: their imports overlap
-        proc.stdin.write(_npz_bytes({**{k: v[lo:hi] for k, v in batched.items()}, **(shared or {})}))
+        proc.stdin.write(_npz_bytes({**{k: v[lo:hi] for k, v in batched.items()}, **(shared or {}),
+                                     SHARED: np.array(sorted(shared or {}), dtype=str)}))
         proc.stdin.close()
     outs = [proc.stdout.read() for proc in procs]
-    for proc in procs:
+    for r in readers:
+        r.join()
+    bar.close()
+    for proc, err in zip(procs, errors):
         if proc.wait() != 0:
-            raise RuntimeError(f"worker {module_file}:{function} failed with exit code {proc.returncode}")
+            raise RuntimeError(f"worker {module_file}:{function} failed with exit code {proc.returncode}: "
+                               + (err[-1] if err else "no message"))
     results = [np.load(io.BytesIO(out)) for out in outs]
     return {k: np.concatenate([r[k] for r in results]) for k in results[0].files}
 
@@ -55,7 +83,15 @@ def _main() -> None:
     sys.modules[spec.name] = module
     spec.loader.exec_module(module)
     data = np.load(io.BytesIO(sys.stdin.buffer.read()))
-    out = getattr(module, function)(**{k: data[k] for k in data.files})
+    names = set(data[SHARED].tolist())
+    shared = {k: data[k] for k in data.files if k in names}
+    batched = {k: data[k] for k in data.files if k not in names and k != SHARED}
+    n = len(next(iter(batched.values())))
+    pieces = []
+    for lo in range(0, n, PIECE):
+        pieces.append(getattr(module, function)(**{k: v[lo:lo + PIECE] for k, v in batched.items()}, **shared))
+        print(min(PIECE, n - lo), file=sys.stderr, flush=True)
+    out = {k: np.concatenate([p[k] for p in pieces]) for k in pieces[0]}
     sys.stdout.buffer.write(_npz_bytes(out))
     sys.stdout.buffer.flush()
 
