@@ -16,7 +16,7 @@ from gymnax.environments import environment, spaces
 from semuav_jax import channel, kinematics, quality
 from semuav_jax.actions import action_to_accel
 from semuav_jax.observation import obs_bounds, obs_size, observation
-from semuav_jax.params import EnvParams, make_params
+from semuav_jax.params import EnvParams, make_params, params_valid, validate_params
 from semuav_jax.reward import reward
 
 ENV_ID = "SemUAV-v0"
@@ -134,12 +134,29 @@ class SemUAVEnv(environment.Environment[EnvState, EnvParams]):
     (eq. 3.9): arrival, t = K, or leaving the airspace (eq. 3.10). Reaching t = K is a true
     terminal, not a time-limit truncation: the time left (K - t)/K is part of the observation
     (eq. 5.1) and the miss is penalized in that slot (eq. 4.5), so nothing lies beyond t = K to
-    bootstrap from; ``truncated`` is always False. ``info`` holds ``discount``, ``arrived`` and
-    ``delay`` (eq. 3.1), plus gymnax's ``terminated``, ``truncated`` and ``final_observation``.
+    bootstrap from; ``truncated`` is always False. ``info`` holds ``discount``, ``arrived``,
+    ``delay`` (eq. 3.1) and ``valid`` (False when a parameter traced under the caller's ``jit`` is
+    out of range, ``params.params_valid``), plus gymnax's ``terminated``, ``truncated`` and
+    ``final_observation``. ``reset`` and ``step`` validate concrete parameters first (one-line
+    ValueError), once per ``EnvParams`` object.
     """
 
     def __init__(self, params: EnvParams | None = None):
         self._params = params
+        self._checked = None  # the last EnvParams object validated
+
+    def _check(self, params: EnvParams | None) -> EnvParams:
+        params = self.default_params if params is None else params
+        if params is not self._checked:
+            validate_params(params)
+            self._checked = params
+        return params
+
+    def reset(self, key, params: EnvParams | None = None):
+        return super().reset(key, self._check(params))
+
+    def step(self, key, state: EnvState, action, params: EnvParams | None = None):
+        return super().step(key, state, action, self._check(params))
 
     @property
     def default_params(self) -> EnvParams:
@@ -178,7 +195,8 @@ class SemUAVEnv(environment.Environment[EnvState, EnvParams]):
 
     def step_env(self, key, state: EnvState, action, params: EnvParams):
         new, rew = transition(key, state, action_to_accel(action, params), params)
-        info = {"discount": self.discount(new, params), "arrived": new.arrived, "delay": new.delay}
+        info = {"discount": self.discount(new, params), "arrived": new.arrived, "delay": new.delay,
+                "valid": params_valid(params)}
         return observation(new, params), new, rew, new.done, info
 
 

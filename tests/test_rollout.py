@@ -1,14 +1,18 @@
 """The vmapped rollout: equal to a Python loop, deterministic, one program for a bandwidth sweep."""
 
+import functools
+
 import chex
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from semuav_jax import env
 from semuav_jax.metrics import episode_metrics
-from semuav_jax.params import make_params
+from semuav_jax.params import _NON_NEGATIVE, _POSITIVE, make_params
 from semuav_jax.rollout import delay_draws, episode, random_policy, random_policy_state, rollout
 
 
@@ -112,3 +116,32 @@ def test_traced_bad_value_is_flagged_never_a_number(params, bad):
     assert not np.any(m["valid"]) and not np.any(m["arrived"])
     for k in ("mean_psnr", "coverage", "return", "mission_time"):
         assert np.all(np.isnan(m[k])), k
+
+
+_SCALARS = sorted(set(_POSITIVE) | set(_NON_NEGATIVE))
+
+
+@settings(max_examples=40, deadline=None)
+@given(name=st.sampled_from(_SCALARS), kind=st.sampled_from(["zero", "negative", "nan", "inf", "-inf"]))
+def test_invalid_values_never_give_a_believable_number(curves, name, kind):
+    """Any out-of-range scalar is a one-line ValueError on the host and, traced inside jit, a
+    metrics dict with valid = False and NaN PSNR: never a finite-looking result."""
+    value = {"zero": 0.0, "negative": -1.0, "nan": float("nan"), "inf": float("inf"), "-inf": float("-inf")}[kind]
+    allowed = (kind == "zero" and name in _NON_NEGATIVE) or (kind == "inf" and name == "airspace_margin")
+    if allowed:
+        return
+    with pytest.raises(ValueError, match=name):
+        make_params(curves, K=20, **{name: value})
+    params = make_params(curves, K=20)
+    m = _short_episode(params, name, value)
+    assert not bool(m["valid"]) and np.isnan(float(m["mean_psnr"])) and not bool(m["arrived"])
+
+
+@functools.lru_cache(maxsize=None)
+def _short_episode_fn(name):
+    return jax.jit(lambda params, x: episode(toward_goal, jax.random.key(0), params.replace(**{name: x}),
+                                             policy_state=jnp.zeros(2))[0])
+
+
+def _short_episode(params, name, value):
+    return _short_episode_fn(name)(params, jnp.float32(value))

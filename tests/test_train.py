@@ -163,3 +163,25 @@ def test_out_that_is_a_file(tmp_path, curves_file):
     for out in (f, f / "sub"):
         res = _train("--curves", curves_file, "--out", str(out), *TINY)
         assert res.returncode == 2 and "is a file" in res.stderr and "Traceback" not in res.stderr
+
+
+def test_sigint_stops_with_one_line_and_resumes(curves_file, tmp_path):
+    """Ctrl-C during training: exit 130, a one-line message, no traceback; --resume then finishes."""
+    import signal
+    import time
+
+    out = tmp_path / "r"
+    longer = [*TINY[:4], "--total-steps", "2000", *TINY[6:10], "--segments", "10", "--eval-episodes", "0"]
+    proc = subprocess.Popen([sys.executable, str(ROOT / "train.py"), "--curves", curves_file, "--out", str(out), *longer],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 300
+    while not (out / "checkpoint.msgpack").exists() and time.time() < deadline:
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode == 130, err
+    assert "interrupted" in err and "--resume" in err and "Traceback" not in err
+    assert not (out / "model.msgpack").exists()
+    res = _train("--out", str(out), "--resume")
+    assert res.returncode == 0, res.stderr
+    assert (out / "model.msgpack").is_file()

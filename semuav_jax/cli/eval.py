@@ -75,6 +75,15 @@ def agent_folder(args, out: Path) -> Path:
 
 def main(argv=None) -> int:
     try:
+        return _main(argv)
+    except KeyboardInterrupt:  # every file is written atomically: the folder stays consistent
+        print(f"\n{Path(sys.argv[0]).name}: interrupted; the same command continues at the step it stopped in",
+              file=sys.stderr)
+        return 130
+
+
+def _main(argv=None) -> int:
+    try:
         args = parse_args(argv)
     except UsageError as e:
         print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
@@ -89,12 +98,13 @@ def main(argv=None) -> int:
     from semuav_jax.agents.scenarios import scenario_params
     from semuav_jax.curves import load_curves
     from semuav_jax.experiments import fig2
-    from semuav_jax.io import atomic_write
+    from semuav_jax.io import atomic_write, check_writable_folder
     from semuav_jax.provenance import file_hash, provenance
 
     out = Path(args.out)
     t0 = time.time()
     try:
+        check_writable_folder(out)
         out.mkdir(parents=True, exist_ok=True)
         folder = agent_folder(args, out)
         run, config, nets = load_run(folder)

@@ -215,6 +215,15 @@ def segment_lengths(num_chunks: int, segments: int, done: int):
 
 def main(argv=None) -> int:
     try:
+        return _main(argv)
+    except KeyboardInterrupt:  # every file is written atomically: the folder stays consistent
+        print(f"\n{Path(sys.argv[0]).name}: interrupted; the run folder is consistent: continue with --resume",
+              file=sys.stderr)
+        return 130
+
+
+def _main(argv=None) -> int:
+    try:
         args = parse_args(argv)
         cfg = load_run_config(args)
     except (UsageError, ValueError) as e:
