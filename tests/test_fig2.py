@@ -113,3 +113,15 @@ def _quick(out, devices):
 
 def test_quick_is_the_same_with_1_and_2_host_devices(tmp_path):
     assert _quick(tmp_path / "one", 1) == _quick(tmp_path / "two", 2)
+
+
+@pytest.mark.parametrize("args, msg", [
+    (["--bandwidths", "nan"], "--bandwidths must be finite and > 0"),
+    (["--velocities", "0"], "--velocities must be finite and > 0"),
+    (["--layouts", "1"], "--layouts must be >= 2"),
+    (["--quick", "--agent", "x"], "drop --agent or --quick"),
+])
+def test_eval_bad_options(tmp_path, args, msg):
+    res = subprocess.run([sys.executable, str(ROOT / "eval.py"), "--out", str(tmp_path / "o"), *args],
+                         capture_output=True, text=True, cwd=ROOT)
+    assert res.returncode == 2 and msg in res.stderr and "Traceback" not in res.stderr

@@ -148,6 +148,8 @@ def test_overwrite_deletes_only_run_files(curves_file, tmp_path):
         (["--total-steps", "0"], "total_steps must be a positive integer"),
         (["--gamma", "nan"], "gamma must be in [0, 1]"),
         (["--hidden", "0"], "hidden must be"),
+        (["--max-grad-norm", "nan"], "max_grad_norm must be finite"),
+        (["--shield-margin", "inf"], "shield_margin must be finite"),
         (["--bandwidth-range", "nan", "5e3"], "bandwidth_range"),
     ],
 )
