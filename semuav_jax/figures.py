@@ -29,7 +29,7 @@ def save_figure(fig, path: Path, dpi: int = 120):
     """Write ``fig`` as a PNG atomically and close it."""
     buf = io.BytesIO()
     fig.tight_layout()
-    fig.savefig(buf, format="png", dpi=dpi)
+    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")  # keeps legends placed outside the axes
     plt.close(fig)
     atomic_write(path, buf.getvalue())
 
@@ -56,7 +56,8 @@ def fig2a(r: dict, path):
     ax2.set(xlabel="device bandwidth B (kHz)", ylabel="devices covered (of N = 10)", title="coverage")
     for a in (ax, ax2):
         a.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc="lower right")
+    fig.legend(*ax.get_legend_handles_labels(), fontsize=9, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=6,
+               frameon=False)  # below the panels: it hides no data whatever the grid
     save_figure(fig, path)
 
 
