@@ -308,8 +308,12 @@ class Trainer(NamedTuple):
     train: Any  # key -> (TrainState, per-chunk metrics), the whole run
 
 
-def make_train(config: DDQNConfig, env_params: EnvParams) -> Trainer:
-    """Build the pure training functions for one agent; ``jax.vmap(trainer.train)(keys)`` trains seeds."""
+def make_train(config: DDQNConfig, env_params: EnvParams, progress=None) -> Trainer:
+    """Build the pure training functions for one agent; ``jax.vmap(trainer.train)(keys)`` trains seeds.
+
+    ``progress`` (optional, host) is called with the number of chunks done after every chunk, from
+    inside the compiled loop (``jax.debug.callback``; once per seed when vmapped), so a progress bar
+    can move within a long compiled run."""
     network = QNetwork(num_actions(env_params, config), tuple(config.hidden))
     tx = optax.chain(optax.clip_by_global_norm(config.max_grad_norm), optax.adam(config.lr))
     n_act = num_actions(env_params, config)
@@ -411,6 +415,8 @@ def make_train(config: DDQNConfig, env_params: EnvParams) -> Trainer:
         sync = chunk % config.target_period == 0
         target = jax.tree.map(lambda p, t: jnp.where(sync, p, t), ts.params, ts.target_params)
         ts = ts.replace(target_params=target, chunk=chunk)
+        if progress is not None:
+            jax.debug.callback(progress, chunk)
         n = jnp.maximum(s["episodes"].sum(), 1.0)
         out = {
             "env_steps": (ts.step + config.warmup_steps) * E,

@@ -247,7 +247,13 @@ def _main(argv=None) -> int:
         print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
         return 2
 
-    trainer = make_train(config, params)
+    bar = None
+
+    def progress(chunk):  # from inside the compiled segment, once per seed and chunk
+        if bar is not None and int(chunk) > bar.n:
+            bar.update(int(chunk) - bar.n)
+
+    trainer = make_train(config, params, progress=progress)
     keys = jax.random.split(jax.random.PRNGKey(cfg["seed"]), cfg["seeds"])
     init = jax.jit(jax.vmap(trainer.init))
     template = jax.eval_shape(init, keys)
@@ -296,7 +302,7 @@ def _main(argv=None) -> int:
         atomic_write(out / CKPT_FILE, serialization.to_bytes(state))
         plot_curves(rows, out / CURVE_FILE)
         bar.set_postfix(psnr=f"{metrics['mean_psnr'][:, -1].mean():.2f}", eps=f"{metrics['epsilon'][0, -1]:.2f}")
-        bar.update(n)
+        bar.update(done - bar.n)  # the callbacks moved it within the segment
     bar.close()
     if done < config.num_chunks:
         print(f"stopped at chunk {done} / {config.num_chunks}; continue with --resume --out {out}")
