@@ -112,6 +112,7 @@ def test_config_validation():
         DDQNConfig(total_steps=10)
 
 
+@pytest.mark.slow
 def test_short_training_improves_return(curves):
     """Fixed layout, paper reward: ~100 k env steps lift the greedy return far above the untrained net's."""
     params = scenario_params("fixed", curves, reward_mode="paper")

@@ -49,6 +49,7 @@ def reduced(curves, tmp_path_factory):
     return params, run(), saved, resumed, logged
 
 
+@pytest.mark.slow
 def test_reduced_run_properties(reduced):
     params, r, *_ = reduced
     assert [row["B"] for row in r["panel_a"]] == [5e3, 25e3] and r["seeds"] == 2
@@ -71,6 +72,7 @@ def test_reduced_run_properties(reduced):
     assert "DDQN − greedy v_b*" in text and "speed while a device transmits" in text
 
 
+@pytest.mark.slow
 def test_identical_under_fixed_keys_and_after_resuming(reduced):
     """A second run gives the same numbers, and so does one that loads every saved step."""
     _, a, b, c, logged = reduced
@@ -89,6 +91,7 @@ def test_saved_steps_of_another_key_are_dropped(tmp_path):
     assert (tmp_path / "agent_evaluated.msgpack").exists()
 
 
+@pytest.mark.slow
 def test_figures(reduced, tmp_path):
     from semuav_jax import figures
 
@@ -111,6 +114,7 @@ def _quick(out, devices):
     return {k: v for k, v in r.items() if k not in ("devices", "train_s", "eval_s")}
 
 
+@pytest.mark.slow
 def test_quick_is_the_same_with_1_and_2_host_devices(tmp_path):
     assert _quick(tmp_path / "one", 1) == _quick(tmp_path / "two", 2)
 

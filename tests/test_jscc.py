@@ -84,6 +84,7 @@ def test_quantizer_is_8_bit_and_clips():
     assert np.max(np.abs(q.real - np.asarray(x))[inside]) <= 4.0 / 255 + 1e-6
 
 
+@pytest.mark.slow
 def test_short_training_lowers_loss_and_resume_is_exact(tmp_path):
     photos = [data.builtin_test_set()[0][i] for i in range(6)]
     cfg = TrainConfig(steps=40, batch=8, width=8, lr=3e-3, monotone_weight=0.0, synthetic_fraction=0.0)
@@ -106,6 +107,7 @@ def test_short_training_lowers_loss_and_resume_is_exact(tmp_path):
         np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.slow
 def test_monotone_finetune_starts_from_run_and_resume_is_exact(tmp_path):
     photos = [data.builtin_test_set()[0][i] for i in range(6)]
     base = TrainConfig(steps=10, batch=4, width=8, lr=3e-3, monotone_weight=0.0)

@@ -109,6 +109,7 @@ def test_cli_rejects_a_bad_out_before_loading_or_training(tmp_path, capsys, monk
     assert (tmp_path / "f").read_text() == "x" and not (tmp_path / "new").exists()
 
 
+@pytest.mark.slow
 def test_checkpoint_is_replaced_only_with_overwrite(tmp_path, capsys, monkeypatch):
     out = tmp_path / "run"
     train(CFG, PHOTOS, out=out, minutes=1e-9, progress=False, log_every=1)

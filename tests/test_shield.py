@@ -92,6 +92,7 @@ def test_any_policy_arrives_with_the_shield(params):
     assert one(-1e9).mean() < 0.5  # a margin of -inf never overrides: the same policies mostly miss
 
 
+@pytest.mark.slow
 def test_training_stores_shielded_actions(params):
     """With epsilon = 1 throughout, every training episode still arrives when the shield is on."""
     base = DDQNConfig(num_envs=16, total_steps=16 * 250 * 2, steps_per_chunk=250, learning_starts=128,

@@ -1,11 +1,11 @@
 """The shipped agent (semuav_jax/data/agent) is the output of ``python train.py`` and its recorded
 evaluation reproduces here."""
 
+import jax
 import numpy as np
+import pytest
 
 from semuav_jax.agents.ddqn import DDQNConfig, make_train
-import jax
-
 from semuav_jax.agents.evaluate import evaluate_agent, seed_metrics
 from semuav_jax.agents.runs import EVAL_FILE, load_shipped, shipped_folder
 from semuav_jax.agents.scenarios import scenario_params
@@ -25,6 +25,7 @@ def test_shipped_agent_is_the_default_command():
     assert len(ev["commit"].split("+")[0]) == 40
 
 
+@pytest.mark.slow
 def test_recorded_evaluation_reproduces():
     """Every seed's mean PSNR at 25 kHz on the recorded test layouts, within its recorded 95 % CI."""
     import json

@@ -33,6 +33,7 @@ def run_dir(tmp_path_factory, curves_file):
     return out
 
 
+@pytest.mark.slow
 def test_outputs(run_dir):
     for f in ("config.json", "metrics.csv", "learning_curve.png", "checkpoint.msgpack", "model.msgpack", "eval.json",
               "eval.md"):
@@ -49,6 +50,7 @@ def test_outputs(run_dir):
     assert len(ev["commit"]) >= 40 and len(ev["curves_sha256"]) == 64
 
 
+@pytest.mark.slow
 def test_options_come_from_the_config_and_the_preset(tmp_path, curves_file):
     """--preset paper sets the paper's agent; a config field given on the command line overrides it."""
     out = tmp_path / "p"
@@ -61,6 +63,7 @@ def test_options_come_from_the_config_and_the_preset(tmp_path, curves_file):
     assert d["hidden"] == [32, 16] and d["shield_margin"] is None and cfg["reward_mode"] == "paper"
 
 
+@pytest.mark.slow
 def test_same_seed_same_weights(run_dir, curves_file, tmp_path):
     """A second fresh run of the same command writes bit-identical weights (and a different seed does not)."""
     same, other = tmp_path / "same", tmp_path / "other"
@@ -71,12 +74,14 @@ def test_same_seed_same_weights(run_dir, curves_file, tmp_path):
     assert (other / "model.msgpack").read_bytes() != (run_dir / "model.msgpack").read_bytes()
 
 
+@pytest.mark.slow
 def test_refuses_existing_folder(run_dir, curves_file):
     res = _train("--curves", curves_file, "--out", str(run_dir), *TINY)
     assert res.returncode == 2
     assert "--resume" in res.stderr and "Traceback" not in res.stderr
 
 
+@pytest.mark.slow
 def test_interrupted_run_resumes_exactly(run_dir, curves_file, tmp_path):
     """Stop after one of two segments, resume: the final weights equal those of the uninterrupted run."""
     out = tmp_path / "r"
@@ -90,6 +95,7 @@ def test_interrupted_run_resumes_exactly(run_dir, curves_file, tmp_path):
     assert (out / "metrics.csv").read_bytes() == (run_dir / "metrics.csv").read_bytes()
 
 
+@pytest.mark.slow
 def test_resume_drops_metrics_rows_the_checkpoint_lacks(run_dir, curves_file, tmp_path):
     """metrics.csv is written before the checkpoint; rows of a chunk whose checkpoint a kill
     prevented are dropped on resume, so the resumed run's metrics equal the uninterrupted run's."""
@@ -104,6 +110,7 @@ def test_resume_drops_metrics_rows_the_checkpoint_lacks(run_dir, curves_file, tm
     assert not (out / "checkpoint.msgpack.abcd1234.tmp").exists()
 
 
+@pytest.mark.slow
 def test_resume_refuses_other_options_and_broken_checkpoints(curves_file, tmp_path):
     out = tmp_path / "r"
     assert _train("--curves", curves_file, "--out", str(out), "--seeds", "2", *TINY, "--max-segments", "1").returncode == 0
@@ -121,6 +128,7 @@ def test_resume_refuses_other_options_and_broken_checkpoints(curves_file, tmp_pa
     assert res.returncode == 2 and "not this run's checkpoint" in res.stderr and "Traceback" not in res.stderr
 
 
+@pytest.mark.slow
 def test_overwrite_deletes_only_run_files(curves_file, tmp_path):
     out = tmp_path / "r"
     out.mkdir()
@@ -167,6 +175,7 @@ def test_out_that_is_a_file(tmp_path, curves_file):
         assert res.returncode == 2 and "is a file" in res.stderr and "Traceback" not in res.stderr
 
 
+@pytest.mark.slow
 def test_sigint_stops_with_one_line_and_resumes(curves_file, tmp_path):
     """Ctrl-C during training: exit 130, a one-line message, no traceback; --resume then finishes."""
     import signal
