@@ -62,12 +62,14 @@ def flights(params):
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(POLICIES))
 def test_every_baseline_arrives_on_99_5_percent_of_1000_layouts(flights, name):
     arrived, _, _ = flights[name]
     assert arrived[:1000].mean() >= 0.995, arrived[:1000].mean()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("margin", [None, 0.0])
 def test_baselines_arrive_at_every_speed_and_stay_in_the_airspace(params, margin):
     """MODEL.md section 7: the feasibility test counts turning, braking and delays, so every baseline
@@ -82,6 +84,7 @@ def test_baselines_arrive_at_every_speed_and_stay_in_the_airspace(params, margin
         assert not left.any(), name
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(POLICIES))
 def test_no_command_exceeds_a_max(flights, name, params):
     _, _, amax = flights[name]
@@ -89,6 +92,7 @@ def test_no_command_exceeds_a_max(flights, name, params):
     assert np.all(amax == params.a_max)  # every flight starts from rest with a saturated command
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(POLICIES))
 def test_hand_layouts_coverage(flights, name):
     arrived, coverage, _ = flights[name]
@@ -97,6 +101,7 @@ def test_hand_layouts_coverage(flights, name):
     assert np.all(arrived[1000:])
 
 
+@pytest.mark.slow
 def test_greedy_and_tsp_cover_more_than_straight(flights):
     cov = {k: v[1][:1000].mean() for k, v in flights.items()}
     assert cov["greedy"] > cov["straight"] + 1 and cov["tsp"] > cov["straight"] + 1, cov
@@ -134,6 +139,7 @@ def test_bandwidth_x_velocity_sweep_is_one_program(policy, params):
             np.testing.assert_allclose(m["mission_time"][0, j], expected, atol=params.tau)
 
 
+@pytest.mark.slow
 def test_evaluate_runs_the_same_episodes(flights, params):
     """``evaluate`` (the library path) reproduces the flights above: same layouts, delays and seeds."""
     keys = jax.random.split(jax.random.PRNGKey(2024), 1002)[:1000]

@@ -143,6 +143,7 @@ def _killed_save(path, monkeypatch):
             io.atomic_write(path, bytes(1000))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("how", ["resume", "overwrite"])
 def test_next_run_removes_temp_files_of_a_killed_save(tmp_path, monkeypatch, how):
     out = tmp_path / "run"

@@ -99,10 +99,11 @@ def test_rollout_validates_params(params):
         rollout(toward_goal, jnp.zeros(3), params, policy_state=jnp.zeros((3, 2)))
 
 
-@pytest.mark.parametrize("bad", [{"B": -1.0}, {"B": 0.0}, {"B": float("nan")}, {"tau": 0.0}, {"v_max": float("nan")},
-                                 {"device_img": jnp.full(10, 99, jnp.int32)}])
-def test_traced_bad_value_is_flagged_never_a_number(params, bad):
-    """Inside jit a bad value cannot raise: the metrics say valid = False and carry NaN, not a believable number."""
+@pytest.mark.parametrize("bad", [{"B": -1.0}, {"device_img": jnp.full(10, 99, jnp.int32)}])
+def test_traced_bad_value_is_flagged_never_a_number(curves, bad):
+    """Inside jit a bad value cannot raise: the metrics say valid = False and carry NaN, not a believable number
+    (every scalar: the hypothesis test below)."""
+    params = make_params(curves, K=20)
     keys = jax.random.split(jax.random.key(0), 3)
     name, value = next(iter(bad.items()))
 
@@ -121,7 +122,7 @@ def test_traced_bad_value_is_flagged_never_a_number(params, bad):
 _SCALARS = sorted(set(_POSITIVE) | set(_NON_NEGATIVE))
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=20, deadline=None)
 @given(name=st.sampled_from(_SCALARS), kind=st.sampled_from(["zero", "negative", "nan", "inf", "-inf"]))
 def test_invalid_values_never_give_a_believable_number(curves, name, kind):
     """Any out-of-range scalar is a one-line ValueError on the host and, traced inside jit, a
