@@ -16,6 +16,8 @@ import sys
 import time
 from pathlib import Path
 
+from semuav_jax.cli import interruptible
+
 
 class UsageError(Exception):
     """A bad option or folder: one line on stderr, exit code 2."""
@@ -74,12 +76,7 @@ def agent_folder(args, out: Path) -> Path:
 
 
 def main(argv=None) -> int:
-    try:
-        return _main(argv)
-    except KeyboardInterrupt:  # every file is written atomically: the folder stays consistent
-        print(f"\n{Path(sys.argv[0]).name}: interrupted; the same command continues at the step it stopped in",
-              file=sys.stderr)
-        return 130
+    return interruptible(_main, argv, "the same command continues at the step it stopped in")
 
 
 def _main(argv=None) -> int:

@@ -17,6 +17,8 @@ import sys
 import time
 from pathlib import Path
 
+from semuav_jax.cli import interruptible
+
 from semuav_jax.agents.runs import CKPT_FILE, CONFIG_FILE, CURVE_FILE, METRICS_FILE, MODEL_FILE, RUN_FILES, clear_run
 from semuav_jax.io import atomic_write, check_writable_folder, remove_stale_temps
 
@@ -214,12 +216,7 @@ def segment_lengths(num_chunks: int, segments: int, done: int):
 
 
 def main(argv=None) -> int:
-    try:
-        return _main(argv)
-    except KeyboardInterrupt:  # every file is written atomically: the folder stays consistent
-        print(f"\n{Path(sys.argv[0]).name}: interrupted; the run folder is consistent: continue with --resume",
-              file=sys.stderr)
-        return 130
+    return interruptible(_main, argv, "the run folder is consistent: continue with --resume")
 
 
 def _main(argv=None) -> int:
