@@ -91,6 +91,7 @@ def test_target_network_updates_only_on_schedule(small):
             assert _same(state.target_params, initial_target)
 
 
+@pytest.mark.slow
 def test_seeds_differ_and_reproduce(small):
     _, tr = small
     init = jax.jit(jax.vmap(tr.init))

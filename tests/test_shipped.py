@@ -41,6 +41,7 @@ def test_recorded_evaluation_reproduces():
         assert abs(m["mean_psnr"][s, 0].mean() - recorded["mean_psnr"]) <= recorded["ci95"], s
 
 
+@pytest.mark.slow
 def test_seed_metrics_is_a_loop_over_seeds_and_bandwidths():
     """The program vmapped over seeds and B gives each seed's own evaluation at each B exactly."""
     run, config, nets = load_shipped()
