@@ -88,7 +88,7 @@ def test_quantizer_is_8_bit_and_clips():
 def test_short_training_lowers_loss_and_resume_is_exact(tmp_path):
     photos = [data.builtin_test_set()[0][i] for i in range(6)]
     cfg = TrainConfig(steps=40, batch=8, width=8, lr=3e-3, monotone_weight=0.0, synthetic_fraction=0.0)
-    from semuav_jax.jscc.train import init_params, load_config
+    from semuav_jax.jscc.train import init_params, load_checkpoint, make_optimizer
 
     x = np.stack(photos)
     net = DeepJSCC(cfg.width)
@@ -101,7 +101,7 @@ def test_short_training_lowers_loss_and_resume_is_exact(tmp_path):
     params, _ = train(cfg, photos, out=tmp_path / "a", progress=False)
     assert loss(params) < 0.7 * before
     train(cfg, photos, out=tmp_path / "b", minutes=1e-9, progress=False, log_every=10)
-    assert load_config(tmp_path / "b")[1]["step"] == 10
+    assert load_checkpoint(tmp_path / "b", cfg, make_optimizer(cfg))[2] == 10
     resumed, _ = train(cfg, photos, out=tmp_path / "b", resume=True, progress=False, log_every=10)
     for a, b in zip(jax.tree_util.tree_leaves(params), jax.tree_util.tree_leaves(resumed)):
         np.testing.assert_array_equal(a, b)

@@ -33,6 +33,7 @@ def _train(a) -> None:
             raise ValueError(f"--resume continues the run saved in {a.out}, whose config differs: {', '.join(clash)}")
     else:
         cfg = TrainConfig(**{**given, "init_from": a.init_from or None})
+    cfg.validate()  # before the photos are loaded
     if a.images:
         photos = data.folder_photos(a.images)
     elif a.cifar10:

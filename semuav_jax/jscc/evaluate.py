@@ -85,8 +85,8 @@ def compute_curves(model, params, x: np.ndarray) -> np.ndarray:
 
 def write_curves(ckpt: str | os.PathLike, out: str | os.PathLike, model_out: str | os.PathLike | None = None):
     """Evaluate the checkpoint in ``ckpt``, write the model .msgpack and the curves .npz."""
-    cfg, run = load_config(ckpt)
-    params, _, step = load_checkpoint(ckpt, cfg, make_optimizer(cfg))
+    cfg, _ = load_config(ckpt)
+    params, _, step, history = load_checkpoint(ckpt, cfg, make_optimizer(cfg))
     out = Path(out)
     if out.suffix != ".npz":
         raise ValueError(f"--out must be a .npz path, got {out}")
@@ -96,7 +96,6 @@ def write_curves(ckpt: str | os.PathLike, out: str | os.PathLike, model_out: str
     x, names = data.builtin_test_set()
     C = compute_curves(model, params, x)
     mean = C.mean(axis=0)
-    history = run.get("history", [])
     meta = {
         "M": M,
         "image_shape": list(IMAGE_SHAPE),

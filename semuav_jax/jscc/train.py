@@ -74,8 +74,8 @@ class TrainConfig:
         for name in ("steps", "batch", "width", "monotone_gap"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)}")
-        if not self.lr > 0:
-            raise ValueError(f"lr must be positive, got {self.lr}")
+        if not (np.isfinite(self.lr) and self.lr > 0):
+            raise ValueError(f"lr must be finite and > 0, got {self.lr}")
         if not np.isfinite(self.snr_db):
             raise ValueError(f"snr_db must be finite, got {self.snr_db}")
         if not (np.isfinite(self.monotone_weight) and self.monotone_weight >= 0):
@@ -111,7 +111,7 @@ def start_params(cfg: TrainConfig):
     for name in ("width", "mask_input"):
         if getattr(src_cfg, name) != getattr(cfg, name):
             raise ValueError(f"--init-from {cfg.init_from} has {name} {getattr(src_cfg, name)}, not {getattr(cfg, name)}")
-    params, _, _ = load_checkpoint(cfg.init_from, src_cfg, make_optimizer(src_cfg))
+    params, _, _, _ = load_checkpoint(cfg.init_from, src_cfg, make_optimizer(src_cfg))
     return params
 
 
@@ -177,11 +177,25 @@ def make_train_step(cfg: TrainConfig):
     return step
 
 
+def _config_text(cfg: TrainConfig) -> str:
+    return json.dumps({"config": dataclasses.asdict(cfg)}, indent=1)
+
+
 def save_checkpoint(out: Path, cfg: TrainConfig, params, opt_state, step: int, history: list) -> None:
-    state = {"params": params, "opt_state": opt_state, "step": step}
+    """Write the run's state (parameters, optimizer, step and history) as one checkpoint file,
+    atomically; config.json, which holds only the config, is written before it when it does not hold
+    this config yet. A kill at any moment leaves either the previous checkpoint or this one, each
+    with its own step and history, beside the right config."""
+    p = out / CONFIG_FILE
+    try:
+        current = json.loads(p.read_text()).get("config") if p.is_file() else None
+    except (ValueError, AttributeError):
+        current = None
+    if current != json.loads(json.dumps(dataclasses.asdict(cfg))):
+        atomic_write(p, _config_text(cfg).encode())
+    state = {"params": params, "opt_state": opt_state, "step": step,
+             "history": np.asarray(history, np.float64).reshape(-1, 3)}
     atomic_write(out / CKPT_FILE, serialization.to_bytes(state))
-    meta = {"config": dataclasses.asdict(cfg), "step": step, "history": history}
-    atomic_write(out / CONFIG_FILE, json.dumps(meta, indent=1).encode())
 
 
 def check_out(out: str | os.PathLike, resume: bool = False, overwrite: bool = False) -> None:
@@ -198,7 +212,8 @@ def check_out(out: str | os.PathLike, resume: bool = False, overwrite: bool = Fa
 
 
 def load_config(ckpt_dir: str | os.PathLike) -> tuple[TrainConfig, dict]:
-    """Config and run metadata of a checkpoint directory; ValueError if absent or broken."""
+    """(config, contents of config.json) of a checkpoint directory; ValueError if absent or broken.
+    The step and history are in the checkpoint itself (:func:`load_checkpoint`)."""
     p = Path(ckpt_dir) / CONFIG_FILE
     if not p.is_file():
         raise ValueError(f"{ckpt_dir} is not a DeepJSCC checkpoint directory (no {CONFIG_FILE})")
@@ -210,15 +225,27 @@ def load_config(ckpt_dir: str | os.PathLike) -> tuple[TrainConfig, dict]:
 
 
 def load_checkpoint(ckpt_dir: str | os.PathLike, cfg: TrainConfig, opt: optax.GradientTransformation):
-    """(params, opt_state, step) restored from ``ckpt_dir``."""
+    """(params, opt_state, step, history) restored from ``ckpt_dir``; ValueError (one line) if the
+    checkpoint is unreadable or its arrays are not those of ``cfg``. ``history`` is the list of
+    (step, mean loss, elapsed seconds) of the checkpoint (of config.json for checkpoints written
+    before it held one)."""
     params = init_params(cfg)
     template = {"params": params, "opt_state": opt.init(params), "step": 0}
     p = Path(ckpt_dir) / CKPT_FILE
     try:
-        state = serialization.from_bytes(template, p.read_bytes())
+        raw = serialization.msgpack_restore(p.read_bytes())
+        history = raw.pop("history", None)
+        state = serialization.from_state_dict(template, raw)
     except Exception as e:
         raise ValueError(f"{p}: unreadable checkpoint ({type(e).__name__}: {e})") from e
-    return state["params"], state["opt_state"], int(state["step"])
+    got, want = jax.tree_util.tree_leaves(state), jax.tree_util.tree_leaves(template)
+    if jax.tree_util.tree_structure(state) != jax.tree_util.tree_structure(template) or any(
+            np.shape(a) != np.shape(b) for a, b in zip(got, want)):
+        raise ValueError(f"{p}: its arrays do not match {Path(ckpt_dir) / CONFIG_FILE} (not this run's checkpoint)")
+    if history is None:  # written before checkpoints held their history
+        history = load_config(ckpt_dir)[1].get("history", [])
+    history = [(int(s), float(loss), float(t)) for s, loss, t in np.asarray(history, np.float64).reshape(-1, 3)]
+    return state["params"], state["opt_state"], int(state["step"]), history
 
 
 def train(
@@ -252,13 +279,13 @@ def train(
     if resume:
         if out is None:
             raise ValueError("--resume needs --out pointing at an existing checkpoint directory")
-        saved_cfg, meta = load_config(out)
+        saved_cfg, _ = load_config(out)
         if saved_cfg != cfg:
             raise ValueError(f"--resume with a different config: saved {saved_cfg}, given {cfg}")
-        params, opt_state, start = load_checkpoint(out, cfg, opt)
-        history = meta.get("history", [])
+    if resume and (out / CKPT_FILE).exists():
+        params, opt_state, start, history = load_checkpoint(out, cfg, opt)
         elapsed0 = history[-1][2] if history else 0.0
-    else:
+    else:  # a fresh run, or one killed after writing its config.json and before its first checkpoint
         params = start_params(cfg)
         opt_state = opt.init(params)
         if overwrite and out is not None:
