@@ -3,7 +3,9 @@ compiled program, for the default agent and the paper preset (docs/performance.m
 
 Times one compiled segment of ``train.py``'s configuration (after a warm-up call that compiles
 it) and prints a table; writes benchmarks/train_throughput.json. Run it on a quiet machine:
-``python benchmarks/train_throughput.py [--seeds 1 3] [--chunks 4]``.
+``python benchmarks/train_throughput.py [--seeds 1 3] [--chunks 4] [--buffers ring flashbax]``.
+``--buffers flashbax`` trains with flashbax's item buffer in place of our ring buffer (needs
+``pip install flashbax``; it is not a dependency of the package).
 """
 
 from __future__ import annotations
@@ -17,15 +19,25 @@ from pathlib import Path
 
 import jax
 
-from semuav_jax.agents.ddqn import PRESETS, DDQNConfig, make_train, preset_config
+from semuav_jax.agents.ddqn import PRESETS, DDQNConfig, make_train, preset_config, ring_buffer
 from semuav_jax.agents.scenarios import scenario_params
 from semuav_jax.io import atomic_write
 
 
-def measure(seeds: int, chunks: int, preset: str) -> dict:
+def replay_buffer(name: str, config: DDQNConfig):
+    """The replay memory ``name``: ours (``ring``) or flashbax's uniform item buffer."""
+    if name == "ring":
+        return ring_buffer(config.buffer_size, config.batch_size)
+    import flashbax
+
+    return flashbax.make_item_buffer(max_length=config.buffer_size, min_length=config.batch_size,
+                                     sample_batch_size=config.batch_size, add_batches=True)
+
+
+def measure(seeds: int, chunks: int, preset: str, buffer: str = "ring") -> dict:
     params = scenario_params("random", None, reward_mode=PRESETS[preset].get("reward_mode", "gain"), B=25e3)
     config = preset_config(preset)
-    trainer = make_train(config, params)
+    trainer = make_train(config, params, buffer=replay_buffer(buffer, config))
     keys = jax.random.split(jax.random.PRNGKey(0), seeds)
     state = jax.jit(jax.vmap(trainer.init))(keys)
     run = jax.jit(jax.vmap(lambda s: trainer.run(s, chunks)))
@@ -39,7 +51,7 @@ def measure(seeds: int, chunks: int, preset: str) -> dict:
     dt = time.perf_counter() - t0
     steps = seeds * chunks * config.steps_per_chunk * config.num_envs
     updates = seeds * chunks * config.steps_per_chunk * config.updates_per_step
-    return {"preset": preset, "seeds": seeds, "env_steps": steps, "seconds": dt, "env_steps_per_s": steps / dt,
+    return {"preset": preset, "buffer": buffer, "seeds": seeds, "env_steps": steps, "seconds": dt, "env_steps_per_s": steps / dt,
             "updates_per_s": updates / dt, "first_call_s": compile_s}
 
 
@@ -48,12 +60,14 @@ def main():
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 3])
     ap.add_argument("--chunks", type=int, default=4, help="chunks per timed segment")
     ap.add_argument("--presets", nargs="+", choices=sorted(PRESETS), default=["default", "paper"])
+    ap.add_argument("--buffers", nargs="+", choices=["ring", "flashbax"], default=["ring"],
+                    help="replay memories to time (flashbax: pip install flashbax)")
     ap.add_argument("--out", default=str(Path(__file__).with_suffix(".json")))
     args = ap.parse_args()
-    rows = [measure(s, args.chunks, p) for p in args.presets for s in args.seeds]
-    print(f"{'preset':>8} {'seeds':>5} {'env steps/s':>12} {'updates/s':>10} {'timed s':>8} {'1st call s':>10}")
+    rows = [measure(s, args.chunks, p, b) for p in args.presets for b in args.buffers for s in args.seeds]
+    print(f"{'preset':>8} {'buffer':>8} {'seeds':>5} {'env steps/s':>12} {'updates/s':>10} {'timed s':>8} {'1st call s':>10}")
     for r in rows:
-        print(f"{r['preset']:>8} {r['seeds']:>5} {r['env_steps_per_s']:>12,.0f} {r['updates_per_s']:>10,.0f} "
+        print(f"{r['preset']:>8} {r['buffer']:>8} {r['seeds']:>5} {r['env_steps_per_s']:>12,.0f} {r['updates_per_s']:>10,.0f} "
               f"{r['seconds']:>8.1f} {r['first_call_s']:>10.1f}")
     info = {"config": DDQNConfig().to_dict(), "presets": PRESETS, "cpu_count": os.cpu_count(),
             "load_avg": os.getloadavg(), "platform": platform.platform(), "jax": jax.__version__, "rows": rows}

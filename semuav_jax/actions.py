@@ -32,6 +32,8 @@ def action_to_accel(action, params: EnvParams):
 
 # ---------------------------------------------------------------- waypoint actions (eq. 6.2)
 
+ACTION_MODES = ("table", "waypoint")  # eq. 6.1, eq. 6.2
+
 TARGETS = 3  # the nearest unfinished devices a waypoint action can aim at
 SPEEDS = (0.0, 6.0, 12.0, 18.0, 25.0)  # m/s; 0 = fly over the device and hover there (eq. 7.3)
 HOVER_BRAKE = 0.5  # share of a_max a hover approach brakes with
@@ -65,3 +67,15 @@ def waypoint_accel(action, state, params: EnvParams):
     home = home_command(state.q, state.v, params.v_max, params)
     go = (action < HOME) & (action // len(SPEEDS) < params.N) & (state.m[n] < params.M)
     return jnp.where(go, to_device, home)
+
+
+def num_actions(mode: str, params: EnvParams) -> int:
+    """How many discrete actions the action mode ``mode`` has (eq. 6.1: levels^2; eq. 6.2: NUM_WAYPOINT_ACTIONS)."""
+    return NUM_WAYPOINT_ACTIONS if mode == "waypoint" else params.num_actions
+
+
+def to_accel(mode: str, action, state, params: EnvParams):
+    """The acceleration of discrete ``action`` in the action mode ``mode`` (static): eq. 6.1 or eq. 6.2."""
+    if mode == "waypoint":
+        return waypoint_accel(action, state, params)
+    return action_to_accel(action, params)

@@ -1,8 +1,8 @@
 """The environment of MODEL.md section 3, as a gymnax 1.0 environment.
 
 ``transition`` is one slot driven by a continuous acceleration (what the baselines command);
-``SemUAVEnv.step_env`` maps a discrete action index onto it (eq. 6.1) and gymnax's
-``Environment.step`` adds the auto-reset. Everything is pure and jittable. ``make`` builds the
+``SemUAVEnv.step_env`` maps a discrete action index onto it (the paper's table, eq. 6.1, or the
+waypoint actions, eq. 6.2) and gymnax's ``Environment.step`` adds the auto-reset. Everything is pure and jittable. ``make`` builds the
 environment and its parameters by id, like ``gymnax.make``.
 """
 
@@ -14,7 +14,7 @@ from flax import struct
 from gymnax.environments import environment, spaces
 
 from semuav_jax import channel, kinematics, quality
-from semuav_jax.actions import action_to_accel
+from semuav_jax.actions import ACTION_MODES, num_actions, to_accel
 from semuav_jax.observation import obs_bounds, obs_size, observation
 from semuav_jax.params import EnvParams, make_params, params_valid, validate_params
 from semuav_jax.reward import reward
@@ -127,7 +127,8 @@ def transition_u(u, state: EnvState, accel, params: EnvParams):
 
 
 class SemUAVEnv(environment.Environment[EnvState, EnvParams]):
-    """gymnax ``Environment`` over the paper's action table (eq. 6.1), observation eq. 5.1.
+    """gymnax ``Environment``: observation eq. 5.1, actions the paper's table of accelerations
+    (eq. 6.1, ``actions="table"``) or the waypoint actions of eq. 6.2 (``actions="waypoint"``).
 
     ``step(key, state, action, params)`` (inherited) returns ``(obs, state, reward, terminated,
     truncated, info)`` and resets on the end of an episode. ``terminated`` is ``state.done``
@@ -138,11 +139,15 @@ class SemUAVEnv(environment.Environment[EnvState, EnvParams]):
     ``delay`` (eq. 3.1) and ``valid`` (False when a parameter traced under the caller's ``jit`` is
     out of range, ``params.params_valid``), plus gymnax's ``terminated``, ``truncated`` and
     ``final_observation``. ``reset`` and ``step`` validate concrete parameters first (one-line
-    ValueError), once per ``EnvParams`` object.
+    ValueError), once per ``EnvParams`` object. Subclasses change what the agent sees by
+    overriding ``get_obs`` and ``observation_space``.
     """
 
-    def __init__(self, params: EnvParams | None = None):
+    def __init__(self, params: EnvParams | None = None, actions: str = "table"):
+        if actions not in ACTION_MODES:
+            raise ValueError(f"actions must be one of {ACTION_MODES}, got {actions!r}")
         self._params = params
+        self.actions = actions
         self._checked = None  # the last EnvParams object validated
 
     def _check(self, params: EnvParams | None) -> EnvParams:
@@ -170,10 +175,10 @@ class SemUAVEnv(environment.Environment[EnvState, EnvParams]):
 
     @property
     def num_actions(self) -> int:
-        return self.default_params.num_actions
+        return num_actions(self.actions, self.default_params)
 
     def action_space(self, params: EnvParams | None = None) -> spaces.Discrete:
-        return spaces.Discrete((params or self.default_params).num_actions)
+        return spaces.Discrete(num_actions(self.actions, params or self.default_params))
 
     def observation_space(self, params: EnvParams | None = None) -> spaces.Box:
         params = params or self.default_params
@@ -191,18 +196,19 @@ class SemUAVEnv(environment.Environment[EnvState, EnvParams]):
 
     def reset_env(self, key, params: EnvParams):
         state = reset_state(key, params)
-        return observation(state, params), state
+        return self.get_obs(state, params), state
 
     def step_env(self, key, state: EnvState, action, params: EnvParams):
-        new, rew = transition(key, state, action_to_accel(action, params), params)
+        new, rew = transition(key, state, to_accel(self.actions, action, state, params), params)
         info = {"discount": self.discount(new, params), "arrived": new.arrived, "delay": new.delay,
                 "valid": params_valid(params)}
-        return observation(new, params), new, rew, new.done, info
+        return self.get_obs(new, params), new, rew, new.done, info
 
 
-def make(env_id: str, **params) -> tuple[SemUAVEnv, EnvParams]:
-    """``(env, env_params)`` for an environment id, as ``gymnax.make``; ``params`` are ``make_params`` overrides."""
+def make(env_id: str, actions: str = "table", **params) -> tuple[SemUAVEnv, EnvParams]:
+    """``(env, env_params)`` for an environment id, as ``gymnax.make``; ``actions`` is the action
+    mode ("table", eq. 6.1, or "waypoint", eq. 6.2), ``params`` are ``make_params`` overrides."""
     if env_id != ENV_ID:
         raise ValueError(f"unknown environment id {env_id!r}; known ids: {ENV_ID}")
-    env = SemUAVEnv(make_params(**params))
+    env = SemUAVEnv(make_params(**params), actions)
     return env, env.default_params

@@ -165,3 +165,30 @@ def test_n_step_transition_by_hand():
     np.testing.assert_array_equal(t.done, [0.0, 1.0])
     np.testing.assert_array_equal(t.next_obs[:, 0], [104.0, 103.0])  # env 1 stops at its terminal step
     np.testing.assert_array_equal(t.action, [1, 2])
+
+
+def test_agent_env_observes_agent_input_and_reports_final_metrics(curves):
+    """Training steps AgentEnv (SemUAVEnv + gymnax auto-reset): its observation is the agent's input,
+    and at an episode's end info holds the input and metrics of the state before the reset."""
+    from semuav_jax.agents.ddqn import AgentEnv, agent_input
+    from semuav_jax.metrics import episode_metrics
+
+    params = scenario_params("random", curves, K=6)
+    cfg = DDQNConfig(**SMALL)
+    env = AgentEnv(params, cfg)
+    assert env.observation_space(params).shape == (int(agent_input(env.reset(jax.random.key(0), params)[1], params, cfg).shape[0]),)
+    step_env = jax.jit(env.step_env)
+    obs, s = env.reset(jax.random.key(0), params)
+    for t in range(6):
+        k = jax.random.key(10 + t)
+        obs, s_next, r, term, trunc, info = env.step(k, s, 15, params)  # HOME at v_max
+        _, s_st, _, _, _ = step_env(jax.random.split(k)[0], s, 15, params)
+        np.testing.assert_allclose(info["final_observation"], agent_input(s_st, params, cfg), rtol=1e-6, atol=1e-6)
+        for name, v in episode_metrics(s_st, params).items():
+            np.testing.assert_array_equal(info["metrics"][name], v)
+        if bool(term):
+            assert int(s_next.t) == 0 and int(s_st.t) == t + 1
+            break
+        s = s_next
+    else:
+        pytest.fail("no episode end within K steps")

@@ -143,3 +143,39 @@ def test_gymnasium_make(curves):
     obs, r, terminated, truncated, info = e.step(e.action_space.sample())
     assert e.observation_space.contains(obs) and not truncated and set(info) >= {"arrived", "delay", "discount"}
     e.close()
+
+
+def test_step_validates_replaced_params_and_flags_traced_ones(short):
+    """``params.replace(...)`` into ``step``: a concrete bad value is a one-line ValueError naming it;
+    traced inside the caller's jit it cannot raise, and ``info["valid"]`` is False."""
+    env, p = short
+    _, s = env.reset(jax.random.key(0), p)
+    for name, bad in (("B", -1.0), ("B", 0.0), ("tau", 0.0), ("v_max", float("nan")), ("P_n", 1e300)):
+        with pytest.raises(ValueError, match=name):
+            env.step(jax.random.key(1), s, 0, p.replace(**{name: bad}))
+        with pytest.raises(ValueError, match=name):
+            env.reset(jax.random.key(1), p.replace(**{name: bad}))
+    valid = jax.jit(lambda B: env.step(jax.random.key(1), s, 0, p.replace(B=B))[-1]["valid"])
+    assert bool(valid(p.B)) and not bool(valid(jax.numpy.float32(-1.0))) and not bool(valid(jax.numpy.float32("nan")))
+
+
+def test_waypoint_action_mode(curves):
+    """actions="waypoint": eq. 6.2 through the same gymnax step; the slot is transition() under waypoint_accel."""
+    from semuav_jax.actions import HOME, NUM_WAYPOINT_ACTIONS, waypoint_accel
+    from semuav_jax.env import transition
+
+    env, p = semuav_jax.make("SemUAV-v0", actions="waypoint", curves=curves, K=K)
+    assert env.num_actions == NUM_WAYPOINT_ACTIONS == env.action_space(p).n
+    with pytest.raises(ValueError, match="actions must be one of"):
+        SemUAVEnv(p, actions="speed")
+    _, s = env.reset(jax.random.key(3), p)
+    for a in (0, 4, HOME):  # nearest device at 0 (hover approach) and 25 m/s, and home
+        obs, s_env, r, *_ = env.step_env(jax.random.key(a), s, a, p)
+        s_ref, r_ref = transition(jax.random.key(a), s, waypoint_accel(a, s, p), p)
+        assert_same_state(s_env, s_ref)
+        assert float(r) == float(r_ref)
+        np.testing.assert_array_equal(obs, observation(s_ref, p))
+    # a waypoint command differs from table action 0 (full braking on both axes)
+    table, _ = semuav_jax.make("SemUAV-v0", curves=curves, K=K)
+    s_table = table.step_env(jax.random.key(0), s, 0, p)[1]
+    assert not np.array_equal(np.asarray(s_table.a_prev), np.asarray(env.step_env(jax.random.key(0), s, 0, p)[1].a_prev))

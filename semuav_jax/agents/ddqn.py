@@ -1,12 +1,14 @@
 """The Double DQN at the BS (MODEL.md sections 5-6), trained in one compiled program.
 
 PureJaxRL style: ``make_train(config, params)`` returns pure functions; the whole training run
-is ``lax.scan`` over *chunks*, and each chunk is ``steps_per_chunk`` vmapped environment steps,
+is ``lax.scan`` over *chunks*, and each chunk is ``steps_per_chunk`` vmapped steps of
+:class:`AgentEnv` (``SemUAVEnv`` with gymnax's auto-reset, seen through the agent's input),
 each followed by ``updates_per_step`` gradient updates on a replay minibatch. The replay memory
-is a ring buffer of device arrays inside the compiled program. The schedule is fixed (no
-data-dependent branches): a warm-up phase fills the memory with random actions, epsilon decays
-linearly with the step counter, and the target network is synced every ``target_period``
-chunks by a ``jnp.where`` blend (a select, cheap for ~40 k parameters).
+is a ring buffer of device arrays inside the compiled program (any buffer with flashbax's
+``init``/``add``/``sample`` can replace it). The schedule is fixed (no data-dependent
+branches): a warm-up phase fills the memory with random actions, epsilon decays linearly
+(``optax.linear_schedule``) and the target network is synced every ``target_period`` chunks
+(``optax.periodic_update``).
 
 Network and optimiser follow the paper: MLP 128-128-64 with ReLU, one Q-value per action
 (MODEL.md section 6), Adam, replay memory of 50 000 transitions. Unless ``shield_margin`` is
@@ -19,7 +21,7 @@ included, and the memory stores the action sent. The default learning rate is
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, NamedTuple
+from typing import Any, Callable, NamedTuple
 
 import flax.linen as nn
 import jax
@@ -27,16 +29,16 @@ import jax.numpy as jnp
 import optax
 from flax import struct
 
-from semuav_jax.actions import NUM_WAYPOINT_ACTIONS, action_to_accel, waypoint_accel
+from gymnax.environments import spaces
+
+from semuav_jax import actions as action_modes
+from semuav_jax.actions import ACTION_MODES
 from semuav_jax.agents.features import table_features, waypoint_features
 from semuav_jax.agents.shield import shield, waypoint_shield
-from semuav_jax.env import reset_state, transition
+from semuav_jax.env import SemUAVEnv, reset_state
 from semuav_jax.metrics import episode_metrics
 from semuav_jax.observation import observation
 from semuav_jax.params import EnvParams
-
-
-ACTION_MODES = ("waypoint", "table")
 
 
 def _f(default, help: str):
@@ -159,16 +161,41 @@ def input_size(params: EnvParams, config: DDQNConfig) -> int:
 
 
 def num_actions(params: EnvParams, config: DDQNConfig) -> int:
-    return NUM_WAYPOINT_ACTIONS if config.actions == "waypoint" else params.num_actions
+    return action_modes.num_actions(config.actions, params)
+
+
+def shielded(action, state, params: EnvParams, config: DDQNConfig):
+    """The action the BS sends for the agent's ``action``: through its shield (``agents/shield.py``)."""
+    if config.actions == "waypoint":
+        return waypoint_shield(action, state, params, config.shield_margin)
+    return shield(action, state, params, config.shield_margin)
 
 
 def command(action, state, params: EnvParams, config: DDQNConfig):
     """What the BS sends for the agent's ``action``: (the action after the shield, its acceleration)."""
-    if config.actions == "waypoint":
-        sent = waypoint_shield(action, state, params, config.shield_margin)
-        return sent, waypoint_accel(sent, state, params)
-    sent = shield(action, state, params, config.shield_margin)
-    return sent, action_to_accel(sent, params)
+    sent = shielded(action, state, params, config)
+    return sent, action_modes.to_accel(config.actions, sent, state, params)
+
+
+class AgentEnv(SemUAVEnv):
+    """``SemUAVEnv`` in the agent's action mode, observed through the agent's input
+    (:func:`agent_input`); ``info["metrics"]`` holds the episode metrics (MODEL.md section 8) of
+    the state before any reset, so training can log finished episodes."""
+
+    def __init__(self, params: EnvParams, config: DDQNConfig):
+        super().__init__(params, config.actions)
+        self.config = config
+
+    def get_obs(self, state, params: EnvParams | None = None, key=None):
+        return agent_input(state, params or self.default_params, self.config)
+
+    def observation_space(self, params: EnvParams | None = None) -> spaces.Box:
+        n = input_size(params or self.default_params, self.config)
+        return spaces.Box(-jnp.inf, jnp.inf, (n,), jnp.float32)
+
+    def step_env(self, key, state, action, params: EnvParams):
+        obs, new, rew, done, info = super().step_env(key, state, action, params)
+        return obs, new, rew, done, info | {"metrics": episode_metrics(new, params)}
 
 
 def train_bandwidths(config: DDQNConfig, params: EnvParams):
@@ -245,6 +272,29 @@ def replay_sample(buf: Replay, key, batch_size: int) -> Transition:
     return jax.tree.map(lambda d: d[idx], buf.data)
 
 
+class ReplayBuffer(NamedTuple):
+    """A replay memory as pure functions, with flashbax's signatures: ``init(example Transition)``,
+    ``add(state, batch of Transitions)``, ``sample(state, key)`` -> an object whose ``experience``
+    is a batch of Transitions (``flashbax.make_item_buffer(..., add_batches=True)`` fits)."""
+
+    init: Callable
+    add: Callable
+    sample: Callable
+
+
+class Sample(NamedTuple):
+    experience: Transition
+
+
+def ring_buffer(capacity: int, batch_size: int) -> ReplayBuffer:
+    """The default memory: :class:`Replay`, uniform sampling with replacement."""
+    return ReplayBuffer(
+        init=lambda example: replay_init(capacity, example.obs.shape[-1]),
+        add=replay_add,
+        sample=lambda buf, key: Sample(replay_sample(buf, key, batch_size)),
+    )
+
+
 # ---------------------------------------------------------------- double-Q learning
 
 
@@ -277,8 +327,7 @@ def n_step_transition(window: Transition, gamma: float) -> Transition:
 def epsilon(step, config: DDQNConfig):
     """Linear decay from eps_start to eps_end over the first eps_decay_frac of the learning steps."""
     n = max(1, int(config.eps_decay_frac * config.num_chunks * config.steps_per_chunk))
-    frac = jnp.clip(step / n, 0.0, 1.0)
-    return config.eps_start + frac * (config.eps_end - config.eps_start)
+    return optax.linear_schedule(config.eps_start, config.eps_end, n)(step)
 
 
 @struct.dataclass
@@ -288,7 +337,7 @@ class TrainState:
     params: Any
     target_params: Any
     opt_state: Any
-    replay: Replay
+    replay: Any  # the replay buffer's state (:class:`Replay` by default)
     window: Transition  # the last n_step one-step transitions of every env (leading axis n_step)
     env_state: Any
     obs: jax.Array
@@ -308,33 +357,25 @@ class Trainer(NamedTuple):
     train: Any  # key -> (TrainState, per-chunk metrics), the whole run
 
 
-def make_train(config: DDQNConfig, env_params: EnvParams, progress=None) -> Trainer:
+def make_train(config: DDQNConfig, env_params: EnvParams, progress=None, buffer: ReplayBuffer | None = None) -> Trainer:
     """Build the pure training functions for one agent; ``jax.vmap(trainer.train)(keys)`` trains seeds.
 
     ``progress`` (optional, host) is called with the number of chunks done after every chunk, from
     inside the compiled loop (``jax.debug.callback``; once per seed when vmapped), so a progress bar
-    can move within a long compiled run."""
+    can move within a long compiled run. ``buffer`` replaces the replay memory (default
+    :func:`ring_buffer`)."""
     network = QNetwork(num_actions(env_params, config), tuple(config.hidden))
     tx = optax.chain(optax.clip_by_global_norm(config.max_grad_norm), optax.adam(config.lr))
+    buffer = ring_buffer(config.buffer_size, config.batch_size) if buffer is None else buffer
     n_act = num_actions(env_params, config)
     n_in = input_size(env_params, config)
     E = config.num_envs
+    env = AgentEnv(env_params, config)
     # every env has its own bandwidth (traced): one vmap over envs and their parameters
     env_batch = env_params.replace(B=train_bandwidths(config, env_params))
     axes = jax.tree.map(lambda _: None, env_params).replace(B=0)
-    inputs = jax.vmap(lambda s, p: agent_input(s, p, config), (0, axes))
-    resets = jax.vmap(reset_state, (0, axes))
-
-    def env_step(key, state, accel):
-        """Step every env; reset finished ones. Returns next input (pre-reset), state, reward, done, metrics."""
-        k_step, k_reset = jax.random.split(key)
-        new, rew = jax.vmap(transition, (0, 0, 0, axes))(jax.random.split(k_step, E), state, accel, env_batch)
-        next_x = inputs(new, env_batch)
-        met = jax.vmap(episode_metrics, (0, axes))(new, env_batch)
-        fresh = resets(jax.random.split(k_reset, E), env_batch)
-        done = new.done
-        state = jax.tree.map(lambda f, s: jnp.where(done.reshape((-1,) + (1,) * (s.ndim - 1)), f, s), fresh, new)
-        return inputs(state, env_batch), next_x, state, rew, done, met
+    env_reset = jax.vmap(env.reset, (0, axes))
+    env_step = jax.vmap(env.step, (0, 0, 0, axes))
 
     def loss_fn(params, target_params, batch):
         q = network.apply(params, batch.obs)
@@ -345,7 +386,7 @@ def make_train(config: DDQNConfig, env_params: EnvParams, progress=None) -> Trai
         return jnp.mean(optax.huber_loss(q_a, jax.lax.stop_gradient(y)))
 
     def update(ts: TrainState, key):
-        batch = replay_sample(ts.replay, key, config.batch_size)
+        batch = buffer.sample(ts.replay, key).experience
         loss, grads = jax.value_and_grad(loss_fn)(ts.params, ts.target_params, batch)
         upd, opt_state = tx.update(grads, ts.opt_state, ts.params)
         return ts.replace(params=optax.apply_updates(ts.params, upd), opt_state=opt_state, updates=ts.updates + 1), loss
@@ -356,31 +397,32 @@ def make_train(config: DDQNConfig, env_params: EnvParams, progress=None) -> Trai
         greedy = jnp.argmax(network.apply(ts.params, ts.obs), axis=-1)
         rand = jax.random.randint(k_rand, (E,), 0, n_act)
         chosen = jnp.where(jax.random.uniform(k_eps, (E,)) < eps, rand, greedy)
-        action, accel = jax.vmap(command, (0, 0, axes, None))(chosen, ts.env_state, env_batch, config)
-        obs, next_obs, state, rew, done, met = env_step(k_env, ts.env_state, accel)
-        one = Transition(ts.obs, action, rew * config.reward_scale, next_obs, done.astype(jnp.float32),
-                         jnp.full((E,), config.gamma, jnp.float32))
+        action = jax.vmap(shielded, (0, 0, axes, None))(chosen, ts.env_state, env_batch, config)
+        obs, state, rew, done, _, info = env_step(jax.random.split(k_env, E), ts.env_state, action, env_batch)
+        met = info["metrics"]
+        one = Transition(ts.obs, action, rew * config.reward_scale, info["final_observation"],
+                         done.astype(jnp.float32), jnp.full((E,), config.gamma, jnp.float32))
         window = jax.tree.map(lambda w, x: jnp.concatenate([w[1:], x[None]]), ts.window, one)
         ts = ts.replace(window=window, env_state=state, obs=obs)
         return ts, (done, met, jnp.mean((action != chosen).astype(jnp.float32)))
 
     def act_and_store(ts: TrainState, key, eps):
         ts, out = act(ts, key, eps)
-        return ts.replace(replay=replay_add(ts.replay, n_step_transition(ts.window, config.gamma))), out
+        return ts.replace(replay=buffer.add(ts.replay, n_step_transition(ts.window, config.gamma))), out
 
     def init(key) -> TrainState:
         k_net, k_env, k_warm, k_run = jax.random.split(key, 4)
         params = network.init(k_net, jnp.zeros((n_in,), jnp.float32))
-        env_state = resets(jax.random.split(k_env, E), env_batch)
+        obs, env_state = env_reset(jax.random.split(k_env, E), env_batch)
+        empty = replay_init(E, n_in).data
         ts = TrainState(
             params=params,
             target_params=params,
             opt_state=tx.init(params),
-            replay=replay_init(config.buffer_size, n_in),
-            window=jax.tree.map(lambda x: jnp.zeros((config.n_step, E) + x.shape[1:], x.dtype),
-                                replay_init(E, n_in).data),
+            replay=buffer.init(jax.tree.map(lambda x: x[0], empty)),
+            window=jax.tree.map(lambda x: jnp.zeros((config.n_step,) + x.shape, x.dtype), empty),
             env_state=env_state,
-            obs=inputs(env_state, env_batch),
+            obs=obs,
             key=k_run,
             step=jnp.zeros((), jnp.int32),
             updates=jnp.zeros((), jnp.int32),
@@ -412,9 +454,8 @@ def make_train(config: DDQNConfig, env_params: EnvParams, progress=None) -> Trai
         eps = epsilon(ts.step, config)
         ts, s = jax.lax.scan(one_step, ts, None, config.steps_per_chunk)
         chunk = ts.chunk + 1
-        sync = chunk % config.target_period == 0
-        target = jax.tree.map(lambda p, t: jnp.where(sync, p, t), ts.params, ts.target_params)
-        ts = ts.replace(target_params=target, chunk=chunk)
+        ts = ts.replace(target_params=optax.periodic_update(ts.params, ts.target_params, chunk, config.target_period),
+                        chunk=chunk)
         if progress is not None:
             jax.debug.callback(progress, chunk)
         n = jnp.maximum(s["episodes"].sum(), 1.0)
