@@ -192,3 +192,19 @@ def test_agent_env_observes_agent_input_and_reports_final_metrics(curves):
         s = s_next
     else:
         pytest.fail("no episode end within K steps")
+
+
+def test_dueling_head_by_hand():
+    """Dueling head: Q(s, a) = V(s) + A(s, a) - mean_a A(s, a), computed here from its own layers."""
+    from semuav_jax.agents.ddqn import QNetwork
+
+    net = QNetwork(5, (8,), dueling=True)
+    x = jax.random.normal(jax.random.key(0), (4, 3))
+    w = net.init(jax.random.key(1), x)["params"]
+    h = jax.nn.relu(x @ w["Dense_0"]["kernel"] + w["Dense_0"]["bias"])
+    v = h @ w["value"]["kernel"] + w["value"]["bias"]
+    a = h @ w["advantage"]["kernel"] + w["advantage"]["bias"]
+    q = net.apply({"params": w}, x)
+    np.testing.assert_allclose(q, v + a - a.mean(-1, keepdims=True), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(q.mean(-1), v[:, 0], rtol=1e-5, atol=1e-6)
+    assert set(QNetwork(5, (8,)).init(jax.random.key(1), x)["params"]) == {"Dense_0", "Dense_1"}

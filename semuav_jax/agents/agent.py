@@ -18,9 +18,10 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
+import flax.linen as nn
 from flax import serialization
 
-from semuav_jax.agents.ddqn import DDQNConfig, QNetwork, agent_input, command, num_actions
+from semuav_jax.agents.ddqn import DDQNConfig, agent_input, command, q_network
 from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.runs import load_run, run_params, shipped_folder
 from semuav_jax.io import atomic_write
@@ -49,8 +50,8 @@ class Agent:
         return run_params(self.run)
 
     @property
-    def network(self) -> QNetwork:
-        return QNetwork(num_actions(self.params, self.config), tuple(self.config.hidden))
+    def network(self) -> nn.Module:
+        return q_network(self.params, self.config)
 
     @classmethod
     def from_run(cls, folder, seed: int = 0) -> "Agent":

@@ -67,6 +67,7 @@ class DDQNConfig:
     reward_scale: float = _f(0.01, "multiplies every reward before learning")
     max_grad_norm: float = _f(10.0, "global gradient-norm clip")
     hidden: tuple = _f((128, 128, 64), "hidden layer widths of the Q-network MLP")
+    dueling: bool = _f(False, "dueling head: Q = V + A - mean(A) (Wang et al. 2016) instead of one linear layer")
     sorted_devices: bool = _f(True, "table actions: sort device blocks nearest first and add tanh offsets")
     shield_margin: float | None = _f(2.0, "seconds of slack of the BS's return-home shield; none: no shield")
     actions: str = _f("waypoint", "waypoint (eq. 6.2: device, speed or hover, home) or table (the paper's 9 accelerations)")
@@ -207,16 +208,26 @@ def train_bandwidths(config: DDQNConfig, params: EnvParams):
 
 
 class QNetwork(nn.Module):
-    """MLP with ReLU and one linear output per action (the paper's: 128-128-64)."""
+    """MLP with ReLU and one linear output per action (the paper's: 128-128-64); with ``dueling``,
+    a value and an advantage head, Q = V + A - mean(A)."""
 
     num_actions: int
     hidden: tuple = (128, 128, 64)
+    dueling: bool = False
 
     @nn.compact
     def __call__(self, x):
         for h in self.hidden:
             x = nn.relu(nn.Dense(h)(x))
-        return nn.Dense(self.num_actions)(x)
+        if not self.dueling:
+            return nn.Dense(self.num_actions)(x)
+        adv = nn.Dense(self.num_actions, name="advantage")(x)
+        return nn.Dense(1, name="value")(x) + adv - jnp.mean(adv, axis=-1, keepdims=True)
+
+
+def q_network(params: EnvParams, config: DDQNConfig) -> QNetwork:
+    """The Q-network of ``config`` for ``params``' action count."""
+    return QNetwork(num_actions(params, config), tuple(config.hidden), config.dueling)
 
 
 # ---------------------------------------------------------------- replay memory (ring buffer)
@@ -364,7 +375,7 @@ def make_train(config: DDQNConfig, env_params: EnvParams, progress=None, buffer:
     inside the compiled loop (``jax.debug.callback``; once per seed when vmapped), so a progress bar
     can move within a long compiled run. ``buffer`` replaces the replay memory (default
     :func:`ring_buffer`)."""
-    network = QNetwork(num_actions(env_params, config), tuple(config.hidden))
+    network = q_network(env_params, config)
     tx = optax.chain(optax.clip_by_global_norm(config.max_grad_norm), optax.adam(config.lr))
     buffer = ring_buffer(config.buffer_size, config.batch_size) if buffer is None else buffer
     n_act = num_actions(env_params, config)
