@@ -150,3 +150,29 @@ def test_evaluate_runs_the_same_episodes(flights, params):
     assert np.sum(m["coverage"] != coverage[:1000]) <= 2
     assert np.max(np.abs(m["coverage"] - coverage[:1000])) <= 1
     assert m["mean_psnr"].shape == (1000,) and np.all(m["mean_psnr"] >= params.C[:, 0].min())
+
+
+def test_sweep_grids_are_checked_on_the_host(params, monkeypatch):
+    """A bad bandwidth or speed anywhere in a sweep grid, or bad params, is a one-line ValueError
+    before anything is traced (a value inside the traced grid could not raise)."""
+    import importlib
+
+    be = importlib.import_module("baselines.evaluate")
+
+    def traced(*a, **k):
+        raise AssertionError("reached the traced sweep")
+
+    monkeypatch.setattr(be, "_sweep", traced)
+    keys = jax.random.split(jax.random.PRNGKey(0), 2)
+    for B in ([5e3, -1.0], [5e3, 0.0], [np.nan], [20e3, np.inf]):
+        with pytest.raises(ValueError, match="B must be finite and > 0 Hz"):
+            sweep("greedy", keys, params, v_b=[8.9], B=B)
+    for v in ([8.9, 0.0], [np.nan], [8.9, -np.inf]):
+        with pytest.raises(ValueError, match="v_b must be finite and > 0 m/s"):
+            sweep("greedy", keys, params, v_b=v, B=[5e3])
+    with pytest.raises(ValueError, match="tau must be > 0"):
+        sweep("greedy", keys, params.replace(tau=0.0), v_b=[8.9])
+    with pytest.raises(ValueError, match="v_b must be finite and > 0 m/s"):
+        evaluate("straight", keys, params, v_b=float("nan"))
+    with pytest.raises(AssertionError, match="traced sweep"):  # good grids reach it
+        sweep("greedy", keys, params, v_b=[8.9], B=[5e3])

@@ -91,6 +91,22 @@ def test_saved_steps_of_another_key_are_dropped(tmp_path):
     assert (tmp_path / "agent_evaluated.msgpack").exists()
 
 
+def test_temporary_files_of_a_killed_save_are_removed(tmp_path, capsys):
+    """Stages and the eval.py --out folder drop the temporary files a kill left, and nothing else."""
+    ours = ["agent_evaluated.msgpack.k1ll3d00.tmp", "key.json.k1ll3d00.tmp"]
+    others = ["notes.tmp", "agent_evaluated.msgpack.tmp", "x.txt.k1ll3d00.tmp"]
+    for n in ours + others:
+        (tmp_path / n).write_bytes(b"half")
+    fig2.Stages(tmp_path, {"grid": 1})
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*others, "key.json"])
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "fig2.json.k1ll3d00.tmp").write_bytes(b"half")
+    (out / "mine.txt").write_text("kept")
+    code, _ = _eval_main(capsys, "--out", str(out), "--agent", str(tmp_path / "none"))  # stops at the missing agent
+    assert code == 2 and sorted(p.name for p in out.iterdir()) == ["mine.txt"]
+
+
 @pytest.mark.slow
 def test_figures(reduced, tmp_path):
     from semuav_jax import figures
@@ -124,8 +140,65 @@ def test_quick_is_the_same_with_1_and_2_host_devices(tmp_path):
     (["--velocities", "0"], "--velocities must be finite and > 0"),
     (["--layouts", "1"], "--layouts must be >= 2"),
     (["--quick", "--agent", "x"], "drop --agent or --quick"),
+    (["--bandwidths", "20000.21", "20000.24"], "--bandwidths 20000.21 and 20000.24 would both be named 20.0002 kHz"),
+    (["--bandwidths", "5000", "25000.000001"], "25000.0 and 25000.000001 would both be named 25 kHz"),  # with the panels' 25 kHz
+    (["--total-steps", "0"], "unrecognized arguments: --total-steps 0"),  # training options belong to train.py
+    (["--total-steps", "-1"], "unrecognized arguments: --total-steps -1"),
 ])
 def test_eval_bad_options(tmp_path, args, msg):
     res = subprocess.run([sys.executable, str(ROOT / "eval.py"), "--out", str(tmp_path / "o"), *args],
                          capture_output=True, text=True, cwd=ROOT)
     assert res.returncode == 2 and msg in res.stderr and "Traceback" not in res.stderr
+
+
+def test_eval_keeps_close_bandwidths_apart(tmp_path):
+    """Bandwidths that differ beyond the first digits of their kHz keep their full values and their own
+    names (one agent serves every bandwidth: nothing is trained per bandwidth)."""
+    from semuav_jax.cli.eval import parse_args
+
+    a = parse_args(["--out", str(tmp_path / "o"), "--bandwidths", "20000.2", "20000.7"])
+    assert a.grid["bandwidths"] == (20000.2, 20000.7)
+    assert {fig2.khz(b) for b in a.grid["bandwidths"]} == {"20.0002", "20.0007"}
+
+
+def _eval_main(capsys, *args):
+    from semuav_jax.cli.eval import main
+
+    code = main(list(args))
+    return code, capsys.readouterr().err
+
+
+def test_eval_out_or_agent_that_cannot_be_used_is_one_line(tmp_path, capsys):
+    """--out a file, under a file or in a folder that takes no files; --agent a run whose config.json
+    has no ddqn block or a key DDQNConfig does not know: exit code 2, one line, nothing evaluated."""
+    f = tmp_path / "f"
+    f.write_text("x")
+    for out, msg in ((f, "is a file"), (f / "sub", "is a file"), (Path("/proc/semuav_results"), "cannot write to --out")):
+        code, err = _eval_main(capsys, "--out", str(out), "--agent", str(tmp_path / "none"))
+        assert code == 2 and msg in err and err.count("\n") == 1, err
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "model.msgpack").write_bytes(b"not read")
+    config = {"scenario": "random", "reward_mode": "gain", "bandwidth": 25e3, "kappa_c": 10.0,
+              "ddqn": {**DDQNConfig().to_dict(), "learning_rate": 1e-3}}
+    (run / "config.json").write_text(json.dumps(config))
+    code, err = _eval_main(capsys, "--out", str(tmp_path / "o"), "--agent", str(run))
+    assert code == 2 and "unknown key in its 'ddqn' block: learning_rate" in err and err.count("\n") == 1, err
+    del config["ddqn"]
+    (run / "config.json").write_text(json.dumps(config))
+    code, err = _eval_main(capsys, "--out", str(tmp_path / "o"), "--agent", str(run))
+    assert code == 2 and "has no 'ddqn' block" in err and err.count("\n") == 1, err
+    from semuav_jax.experiments.learned import main as compare
+
+    assert compare([str(run)]) == 2 and "has no 'ddqn' block" in capsys.readouterr().err
+
+
+def test_eval_ctrl_c_is_one_line_exit_130(tmp_path, capsys, monkeypatch):
+    from semuav_jax.cli import eval as cli_eval
+
+    def interrupted(argv):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli_eval, "parse_args", interrupted)
+    code, err = _eval_main(capsys, "--out", str(tmp_path / "o"))
+    assert code == 130 and "interrupted; the same command continues" in err and err.strip().count("\n") == 0

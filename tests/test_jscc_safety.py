@@ -265,3 +265,14 @@ def test_resume_refuses_broken_or_foreign_checkpoints_and_reads_old_ones(tmp_pat
     assert main(["train", "--out", str(out), "--resume"]) == 0
     _, _, step, resumed = _saved(out)
     assert step == 2 and [h[0] for h in resumed] == [1, 2] and resumed[0] == history[0]
+
+
+def test_cli_ctrl_c_is_one_line_exit_130(tmp_path, capsys, monkeypatch):
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(data, "builtin_train_photos", lambda: PHOTOS)
+    monkeypatch.setattr(train_mod, "train", interrupted)
+    assert main(["train", "--out", str(tmp_path / "run"), *TINY]) == 130
+    err = capsys.readouterr().err
+    assert err.strip() == "interrupted; continue with --resume"

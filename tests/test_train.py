@@ -114,8 +114,11 @@ def test_resume_drops_metrics_rows_the_checkpoint_lacks(run_dir, curves_file, tm
 def test_resume_refuses_other_options_and_broken_checkpoints(curves_file, tmp_path):
     out = tmp_path / "r"
     assert _train("--curves", curves_file, "--out", str(out), "--seeds", "2", *TINY, "--max-segments", "1").returncode == 0
-    res = _train("--out", str(out), "--resume", "--seed", "5", "--num-envs", "4")
+    res = _train("--out", str(out), "--resume", "--seed", "5", "--num-envs", "4", "--bandwidth", "5000",
+                 "--total-steps", "160", "--curves", "synthetic")
     assert res.returncode == 2 and "--seed 5 (saved 0)" in res.stderr and "--num-envs" not in res.stderr
+    for clash in ("--bandwidth 5000.0 (saved 25000.0)", "--total-steps 160 (saved 80)", f"--curves synthetic (saved {curves_file})"):
+        assert clash in res.stderr, res.stderr
     ckpt = (out / "checkpoint.msgpack").read_bytes()
     (out / "checkpoint.msgpack").write_bytes(ckpt[: len(ckpt) // 2])
     res = _train("--out", str(out), "--resume")
@@ -154,6 +157,7 @@ def test_overwrite_deletes_only_run_files(curves_file, tmp_path):
         (["--lr", "nan"], "lr must be finite and > 0"),
         (["--lr", "inf"], "lr must be finite and > 0"),
         (["--total-steps", "0"], "total_steps must be a positive integer"),
+        (["--total-steps", "-1"], "total_steps must be a positive integer"),
         (["--gamma", "nan"], "gamma must be in [0, 1]"),
         (["--hidden", "0"], "hidden must be"),
         (["--max-grad-norm", "nan"], "max_grad_norm must be finite"),
@@ -173,6 +177,38 @@ def test_out_that_is_a_file(tmp_path, curves_file):
     for out in (f, f / "sub"):
         res = _train("--curves", curves_file, "--out", str(out), *TINY)
         assert res.returncode == 2 and "is a file" in res.stderr and "Traceback" not in res.stderr
+    # a folder nothing can be created in (/proc refuses files even to root)
+    res = _train("--curves", curves_file, "--out", "/proc/semuav_run", *TINY)
+    assert res.returncode == 2 and "cannot write to --out /proc/semuav_run" in res.stderr and "Traceback" not in res.stderr
+
+
+def _resume_error(capsys, out) -> str:
+    from semuav_jax.cli.train import main
+
+    assert main(["--out", str(out), "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "error: " in err and "Traceback" not in err
+    return err
+
+
+def test_resume_of_a_broken_run_config_is_one_line(tmp_path, capsys):
+    """config.json without its ddqn block, without a scenario key, with a key DDQNConfig does not know,
+    or not JSON: --resume stops with one line (exit code 2) naming the file, before anything is loaded."""
+    from semuav_jax.cli.train import parse_args, run_config
+
+    good = run_config(parse_args(["--out", str(tmp_path / "x"), "--curves", "synthetic"]))
+    out = tmp_path / "r"
+    out.mkdir()
+    (out / "checkpoint.msgpack").write_bytes(b"not read")
+    for broken, msg in (({k: v for k, v in good.items() if k != "ddqn"}, "no 'ddqn'"),
+                        ({k: v for k, v in good.items() if k != "bandwidth"}, "no 'bandwidth'"),
+                        ({**good, "ddqn": {**good["ddqn"], "learning_rate": 1e-3}}, "unknown key in its 'ddqn' block: learning_rate"),
+                        ([1, 2], "not a train.py run config")):
+        (out / "config.json").write_text(json.dumps(broken))
+        err = _resume_error(capsys, out)
+        assert msg in err and str(out / "config.json") in err, err
+    (out / "config.json").write_text("{trunc")
+    assert "not a train.py run config" in _resume_error(capsys, out)
 
 
 @pytest.mark.slow

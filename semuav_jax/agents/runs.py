@@ -46,10 +46,27 @@ def load_run(folder):
     folder = Path(folder)
     if not finished(folder):
         raise ValueError(f"{folder} is not a finished train.py run (needs {CONFIG_FILE} and {MODEL_FILE})")
-    run = json.loads((folder / CONFIG_FILE).read_text())
-    if "ddqn" not in run:
-        raise ValueError(f"{folder / CONFIG_FILE} has no 'ddqn' block")
-    return run, DDQNConfig.from_dict(run["ddqn"]), serialization.msgpack_restore((folder / MODEL_FILE).read_bytes())
+    try:
+        run = json.loads((folder / CONFIG_FILE).read_text())
+    except ValueError as e:
+        raise ValueError(f"{folder / CONFIG_FILE} is not a train.py run config ({e})") from None
+    return run, ddqn_config(run, folder / CONFIG_FILE), serialization.msgpack_restore((folder / MODEL_FILE).read_bytes())
+
+
+def ddqn_config(run, where) -> DDQNConfig:
+    """The DDQNConfig of a run description (config.json at ``where``); ValueError (one line) if it
+    has no 'ddqn' block or the block has a key DDQNConfig does not know."""
+    import dataclasses
+
+    if not isinstance(run, dict) or not isinstance(run.get("ddqn"), dict):
+        raise ValueError(f"{where} has no 'ddqn' block")
+    unknown = sorted(set(run["ddqn"]) - {f.name for f in dataclasses.fields(DDQNConfig)})
+    if unknown:
+        raise ValueError(f"{where}: unknown key{'s' * (len(unknown) > 1)} in its 'ddqn' block: {', '.join(unknown)}")
+    try:
+        return DDQNConfig.from_dict(run["ddqn"])
+    except TypeError as e:
+        raise ValueError(f"{where}: bad 'ddqn' block ({e})") from None
 
 
 def run_params(run: dict):

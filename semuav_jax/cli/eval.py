@@ -19,12 +19,15 @@ from pathlib import Path
 from semuav_jax.cli import interruptible
 
 
+OUT_FILES = ("fig2.json", "fig2.md", "fig2a.png", "fig2b.png", "fig2c.png")  # what eval.py writes in --out
+
+
 class UsageError(Exception):
     """A bad option or folder: one line on stderr, exit code 2."""
 
 
 def parse_args(argv=None):
-    from semuav_jax.experiments.fig2 import FULL, QUICK
+    from semuav_jax.experiments.fig2 import FULL, QUICK, check_bandwidths
 
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--quick", action="store_true", help="the shipped agent, a smaller grid (docs/RESULTS.md)")
@@ -48,6 +51,10 @@ def parse_args(argv=None):
     for name, xs in (("bandwidths", a.grid["bandwidths"]), ("velocities", a.grid["velocities"])):
         if not all(x > 0 and x < float("inf") for x in xs):
             raise UsageError(f"--{name} must be finite and > 0, got {xs}")
+    try:
+        check_bandwidths(a.grid["bandwidths"])
+    except ValueError as e:
+        raise UsageError(str(e)) from None
     if a.quick and a.agent:
         raise UsageError("--quick evaluates the shipped agent; drop --agent or --quick")
     out = Path(a.out)
@@ -95,7 +102,7 @@ def _main(argv=None) -> int:
     from semuav_jax.agents.scenarios import scenario_params
     from semuav_jax.curves import load_curves
     from semuav_jax.experiments import fig2
-    from semuav_jax.io import atomic_write, check_writable_folder
+    from semuav_jax.io import atomic_write, check_writable_folder, remove_stale_temps
     from semuav_jax.provenance import file_hash, provenance
 
     out = Path(args.out)
@@ -103,6 +110,7 @@ def _main(argv=None) -> int:
     try:
         check_writable_folder(out)
         out.mkdir(parents=True, exist_ok=True)
+        remove_stale_temps(out, OUT_FILES)
         folder = agent_folder(args, out)
         run, config, nets = load_run(folder)
         curves = load_curves(args.curves) if args.curves else None

@@ -19,7 +19,8 @@ from pathlib import Path
 
 from semuav_jax.cli import interruptible
 
-from semuav_jax.agents.runs import CKPT_FILE, CONFIG_FILE, CURVE_FILE, METRICS_FILE, MODEL_FILE, RUN_FILES, clear_run
+from semuav_jax.agents.runs import (CKPT_FILE, CONFIG_FILE, CURVE_FILE, METRICS_FILE, MODEL_FILE, RUN_FILES, clear_run,
+                                    ddqn_config)
 from semuav_jax.io import atomic_write, check_writable_folder, remove_stale_temps
 
 SCENARIO = {"scenario": "random", "reward_mode": "gain", "bandwidth": 25e3, "kappa_c": 10.0, "r_g": 0.0}
@@ -136,14 +137,15 @@ def resume_clashes(args, saved: dict) -> list[str]:
 
     from semuav_jax.agents.ddqn import DDQNConfig
 
-    fresh = run_config(args)
     ddqn = {f.name for f in dataclasses.fields(DDQNConfig)}
     norm = lambda x: json.loads(json.dumps(x))
     clashes = []
     for name in (*ddqn, *SCENARIO, *RUN_OPTIONS, "curves"):
-        if getattr(args, name) is None:
+        new = getattr(args, name)  # compared as given: not checked against the other options (they are the saved ones)
+        if new is None:
             continue
-        new, old = (fresh["ddqn"][name], saved["ddqn"].get(name)) if name in ddqn else (fresh[name], saved.get(name))
+        new = None if new == NONE or new == [NONE] else new
+        old = saved["ddqn"].get(name) if name in ddqn else saved.get(name)
         if norm(new) != norm(old):
             clashes.append(f"--{name.replace('_', '-')} {new} (saved {old})")
     if args.preset != "default" and args.preset != saved.get("preset"):
@@ -159,9 +161,13 @@ def load_run_config(args) -> dict:
             raise UsageError(f"--resume: no {CONFIG_FILE} and {CKPT_FILE} in {out}")
         try:
             saved = json.loads((out / CONFIG_FILE).read_text())
-            assert isinstance(saved, dict) and "ddqn" in saved
-        except (ValueError, AssertionError):
+        except ValueError:
             raise UsageError(f"--resume: {out / CONFIG_FILE} is not a train.py run config") from None
+        needed = ("ddqn", "scenario", "reward_mode", "bandwidth", "kappa_c", *RUN_OPTIONS)
+        missing = [k for k in needed if not isinstance(saved, dict) or k not in saved]
+        if missing:
+            raise UsageError(f"--resume: {out / CONFIG_FILE} is not a train.py run config (no {', '.join(map(repr, missing))})")
+        ddqn_config(saved, out / CONFIG_FILE)  # a one-line error for a block DDQNConfig does not take
         clashes = resume_clashes(args, saved)
         if clashes:
             raise UsageError(f"--resume continues the run saved in {out}, whose config differs: {', '.join(clashes)}")
@@ -232,13 +238,13 @@ def _main(argv=None) -> int:
     from flax import serialization
     from tqdm import tqdm
 
-    from semuav_jax.agents.ddqn import DDQNConfig, make_train
+    from semuav_jax.agents.ddqn import make_train
     from semuav_jax.agents.runs import run_params
 
     out = Path(args.out)
     try:
         params = run_params(cfg)
-        config = DDQNConfig.from_dict(cfg["ddqn"])
+        config = ddqn_config(cfg, out / CONFIG_FILE)
         prepare_folder(args, cfg)
     except (UsageError, ValueError, FileNotFoundError) as e:
         print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)

@@ -113,6 +113,9 @@ class Stages:
         if self.folder is None:
             return
         self.folder.mkdir(parents=True, exist_ok=True)
+        for t in self.folder.glob("*.????????.tmp"):  # atomic_write's temporary files, left by a kill
+            if t.name.startswith("key.json.") or t.name.split(".")[-3] == "msgpack":
+                t.unlink()
         stamp = self.folder / "key.json"
         text = json.dumps(key, sort_keys=True, default=str)
         if not stamp.is_file() or stamp.read_text() != text:
@@ -145,6 +148,22 @@ def _packable(x):
     return np.asarray(x) if isinstance(x, jax.Array) else x
 
 
+def khz(b: float) -> str:
+    """How a bandwidth names a step, a file and a key of the results: kHz, 6 significant digits."""
+    return f"{b / 1e3:g}"
+
+
+def check_bandwidths(bandwidths) -> None:
+    """ValueError if two bandwidths of the grid (with the panels' PANEL_B) would share a name."""
+    by_name: dict = {}
+    for b in sorted(set(bandwidths) | {PANEL_B}):
+        by_name.setdefault(khz(b), []).append(b)
+    for name, bs in by_name.items():
+        if len(bs) > 1:
+            raise ValueError(f"--bandwidths {' and '.join(f'{b!r}' for b in bs)} would both be named {name} kHz: "
+                             "give bandwidths that differ in their first 6 digits")
+
+
 def stage_count(grid: dict) -> int:
     """How many steps :func:`run` logs for ``grid`` (a progress bar's total)."""
     sweep_B = set(grid["bandwidths"]) | {PANEL_B}
@@ -159,6 +178,7 @@ def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, 
         log=print, stages: Stages | None = None) -> dict:
     """Every number and path of Fig. 2 (JSON-ready except the paths' arrays). ``stages`` saves each
     step so that an interrupted run resumes (default: nothing saved)."""
+    check_bandwidths(grid["bandwidths"])
     stage = stages or Stages(None, {}, log)
     log = stage.log
     bandwidths, velocities = tuple(grid["bandwidths"]), tuple(grid["velocities"])
@@ -168,7 +188,7 @@ def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, 
                   describe=lambda t: ": " + ", ".join(f"{n} {t[n]['v_star']}" for n in ("greedy", "tsp")))
     # the TSP order does not depend on B: solved once
     rank = stage("TSP tours", lambda: np.asarray(tsp_ranks(keys, params, workers=workers)))
-    plans = [stage(f"planner at {b / 1e3:g} kHz", lambda b=b: make_plans(keys, params.replace(B=b), workers=workers),
+    plans = [stage(f"planner at {khz(b)} kHz", lambda b=b: make_plans(keys, params.replace(B=b), workers=workers),
                    save=_plan_dict, load=lambda d: PlanState(**{k: jnp.asarray(v) for k, v in d.items()}))
              for b in sweep_B]
     refs = stage("references flown (greedy, TSP at 8.9 m/s and v_b*; planner)",
@@ -200,7 +220,7 @@ def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, 
             runs = traced_runs(network, nets, config, keys, at_b, tuned_at_b, workers, rank=rank, plan=plans[ib])
             return {name: summarize(behaviour(tr, at_b)) for name, (_, tr) in runs.items()}
 
-        out["behaviour"][f"{b / 1e3:g} kHz"] = stage(f"behaviour at {b / 1e3:g} kHz", measure)
+        out["behaviour"][f"{khz(b)} kHz"] = stage(f"behaviour at {khz(b)} kHz", measure)
     pf = fixed.replace(B=PANEL_B)
     one = episode_keys(TEST_SEED, 1)
     paths = traced_runs(network, jax.tree.map(lambda x: x[:1], nets), config, one, pf, tuned_at_b, workers=1)

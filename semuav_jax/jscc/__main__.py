@@ -107,6 +107,9 @@ def main(argv=None) -> int:
     except (ValueError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # every checkpoint is written atomically: the folder is consistent
+        print("\ninterrupted; continue with --resume" if a.cmd == "train" else "\ninterrupted", file=sys.stderr)
+        return 130
     return 0
 
 
