@@ -208,3 +208,24 @@ def test_dueling_head_by_hand():
     np.testing.assert_allclose(q, v + a - a.mean(-1, keepdims=True), rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(q.mean(-1), v[:, 0], rtol=1e-5, atol=1e-6)
     assert set(QNetwork(5, (8,)).init(jax.random.key(1), x)["params"]) == {"Dense_0", "Dense_1"}
+
+
+def test_lr_end_decays_the_learning_rate(curves):
+    """lr_end < 1: cosine decay from lr (the first update equals the constant-lr one) to
+    lr_end * lr; out-of-range shares are refused."""
+    import dataclasses
+
+    for bad in (0.0, 1.5, float("nan")):
+        with pytest.raises(ValueError, match="lr_end"):
+            DDQNConfig(**SMALL, lr_end=bad)
+    params = scenario_params("fixed", curves)
+    cfg = DDQNConfig(**{**SMALL, "steps_per_chunk": 1, "total_steps": 8 * 40})
+    const, decay = (make_train(dataclasses.replace(cfg, lr_end=e), params) for e in (1.0, 0.01))
+    s_c, s_d = (jax.jit(t.init)(jax.random.PRNGKey(0)) for t in (const, decay))
+    assert _same(s_c.params, s_d.params)
+    run_c, run_d = (jax.jit(lambda s, t=t: t.run(s, 1)) for t in (const, decay))
+    s_c, s_d = run_c(s_c)[0], run_d(s_d)[0]
+    assert _same(s_c.params, s_d.params)  # update 1: the schedule's value at count 0 is lr
+    for _ in range(3):
+        s_c, s_d = run_c(s_c)[0], run_d(s_d)[0]
+    assert not _same(s_c.params, s_d.params)

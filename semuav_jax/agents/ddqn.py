@@ -58,6 +58,7 @@ class DDQNConfig:
     buffer_size: int = _f(50_000, "replay memory, transitions")
     learning_starts: int = _f(10_000, "random transitions stored before learning")
     lr: float = _f(2.5e-4, "Adam learning rate")
+    lr_end: float = _f(1.0, "learning rate at the end of training as a share of lr (cosine decay); 1: constant")
     gamma: float = _f(0.99, "discount per slot")
     eps_start: float = _f(1.0, "initial exploration rate")
     eps_end: float = _f(0.02, "final exploration rate")
@@ -105,6 +106,8 @@ class DDQNConfig:
                 raise ValueError(f"bandwidth_range must be (lo, hi) with 0 < lo <= hi, finite, got {self.bandwidth_range}")
         if not self.hidden or not all(isinstance(h, int) and h >= 1 for h in self.hidden):
             raise ValueError(f"hidden must be one or more positive layer widths, got {self.hidden}")
+        if not 0.0 < self.lr_end <= 1.0:
+            raise ValueError(f"lr_end must be in (0, 1], got {self.lr_end}")
         for name in ("lr", "reward_scale", "max_grad_norm"):
             if not 0 < getattr(self, name) < float("inf"):  # NaN fails too
                 raise ValueError(f"{name} must be finite and > 0, got {getattr(self, name)}")
@@ -376,7 +379,9 @@ def make_train(config: DDQNConfig, env_params: EnvParams, progress=None, buffer:
     can move within a long compiled run. ``buffer`` replaces the replay memory (default
     :func:`ring_buffer`)."""
     network = q_network(env_params, config)
-    tx = optax.chain(optax.clip_by_global_norm(config.max_grad_norm), optax.adam(config.lr))
+    updates = config.num_chunks * config.steps_per_chunk * config.updates_per_step
+    lr = config.lr if config.lr_end == 1.0 else optax.cosine_decay_schedule(config.lr, updates, config.lr_end)
+    tx = optax.chain(optax.clip_by_global_norm(config.max_grad_norm), optax.adam(lr))
     buffer = ring_buffer(config.buffer_size, config.batch_size) if buffer is None else buffer
     n_act = num_actions(env_params, config)
     n_in = input_size(env_params, config)
