@@ -141,7 +141,7 @@ PRESETS = {
     # the paper's configuration (MODEL.md section 6, PAPER_CLAIMS.md): paper reward with the shield, lr 5e-5,
     # MLP 128-128-64, the 9 accelerations, the raw observation, 1-step targets, trained at one bandwidth
     "paper": {"reward_mode": "paper", "r_g": 500.0, "actions": "table", "sorted_devices": False, "lr": 5e-5, "hidden": (128, 128, 64),
-              "n_step": 1, "gamma": 0.999, "bandwidth_range": None},
+              "n_step": 1, "gamma": 0.999, "bandwidth_range": None, "dueling": False, "lr_end": 1.0},
 }  # DDQNConfig overrides, plus the scenario's reward_mode and arrival reward r_g
 
 
