@@ -58,7 +58,7 @@ class DDQNConfig:
     buffer_size: int = _f(50_000, "replay memory, transitions")
     learning_starts: int = _f(10_000, "random transitions stored before learning")
     lr: float = _f(2.5e-4, "Adam learning rate")
-    lr_end: float = _f(1.0, "learning rate at the end of training as a share of lr (cosine decay); 1: constant")
+    lr_end: float = _f(0.1, "learning rate at the end of training as a share of lr (cosine decay); 1: constant")
     gamma: float = _f(0.99, "discount per slot")
     eps_start: float = _f(1.0, "initial exploration rate")
     eps_end: float = _f(0.02, "final exploration rate")
