@@ -7,7 +7,7 @@ import pytest
 
 from semuav_jax.agents.ddqn import DDQNConfig, make_train
 from semuav_jax.agents.evaluate import evaluate_agent, seed_metrics
-from semuav_jax.agents.runs import EVAL_FILE, load_shipped, shipped_folder
+from semuav_jax.agents.runs import EVAL_FILE, load_shipped, run_params, shipped_folder
 from semuav_jax.agents.scenarios import scenario_params
 from semuav_jax.curves import load_curves
 from semuav_jax.keys import TEST_SEED, episode_keys
@@ -55,3 +55,24 @@ def test_seed_metrics_is_a_loop_over_seeds_and_bandwidths():
             one = evaluate_agent(network, jax.tree.map(lambda x: x[s], nets), config, keys, params.replace(B=b))
             for k in ("mean_psnr", "arrived", "shield_share"):
                 np.testing.assert_array_equal(one[k], m[k][s, j])
+
+
+def test_validation_table_is_the_seeds_on_validation_layouts(capsys):
+    """``learned --validation``: one row per seed, each the mean PSNR of that seed's greedy policy on
+    the validation layouts (VALIDATION_SEED), not the test ones."""
+    from semuav_jax.experiments.learned import main
+    from semuav_jax.keys import VALIDATION_SEED
+
+    run, config, nets = load_shipped()
+    params = run_params(run).replace(B=25e3)
+    keys = episode_keys(VALIDATION_SEED, 4)
+    assert main([str(shipped_folder()), "--validation", "--validation-episodes", "4"]) == 0
+    rows = [r for r in capsys.readouterr().out.splitlines() if r.startswith(f"| {shipped_folder()}")]
+    assert len(rows) == run["seeds"]
+    network = make_train(config, params).network
+    for s, row in enumerate(rows):
+        w = jax.tree.map(lambda x: x[s], nets)
+        val = evaluate_agent(network, w, config, keys, params)["mean_psnr"].mean()
+        test = evaluate_agent(network, w, config, episode_keys(TEST_SEED, 4), params)["mean_psnr"].mean()
+        cell = float(row.split("|")[4])  # the 25 kHz column
+        assert cell == pytest.approx(val, abs=0.006) and abs(cell - test) > 0.01

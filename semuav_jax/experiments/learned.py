@@ -122,21 +122,48 @@ def evaluate_run(folder, episodes: int = 1000, validation_episodes: int = 500, w
     return r
 
 
+def validation_table(folders, episodes: int = 500, bandwidths=(5e3, 25e3, 40e3)) -> str:
+    """Markdown: mean PSNR of every seed of each run folder on ``episodes`` layouts of
+    ``keys.VALIDATION_SEED`` at each B, the numbers settings are chosen on (test layouts untouched)."""
+    from semuav_jax.agents.ddqn import q_network
+    from semuav_jax.agents.runs import load_run, run_params
+
+    keys = episode_keys(VALIDATION_SEED, episodes)
+    lines = ["| run | seed | " + " | ".join(f"{b / 1e3:g} kHz" for b in bandwidths) + " |",
+             "|---|---|" + "---|" * len(bandwidths)]
+    for folder in folders:
+        run, config, nets = load_run(folder)
+        params = run_params(run)
+        psnr = seed_metrics(q_network(params, config), nets, config, keys, params, bandwidths)["mean_psnr"].mean(-1)
+        for s, row in enumerate(psnr):
+            lines.append(f"| {folder} | {run['seed']}:{s} | " + " | ".join(f"{x:.2f}" for x in row) + " |")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> int:
-    """``python -m semuav_jax.experiments.learned RUN``: (re)write RUN/eval.json and eval.md."""
+    """``python -m semuav_jax.experiments.learned RUN``: (re)write RUN/eval.json and eval.md;
+    ``--validation RUN [RUN ...]``: print the seeds' mean PSNR on validation layouts."""
     import argparse
     import sys
 
     ap = argparse.ArgumentParser(description="Compare a train.py run's seeds with the tuned baselines and the planner.")
-    ap.add_argument("run", help="a finished train.py run folder")
+    ap.add_argument("run", nargs="+", help="a finished train.py run folder (several with --validation)")
     ap.add_argument("--episodes", type=int, default=1000, help="test layouts (default: %(default)s)")
     ap.add_argument("--validation-episodes", type=int, default=500, help="layouts that choose v_b* (default: %(default)s)")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--validation", action="store_true",
+                    help="only the agents, on --validation-episodes validation layouts at 5/25/40 kHz "
+                         "(for choosing settings; writes nothing)")
     args = ap.parse_args(argv)
     if min(args.episodes, args.validation_episodes, args.workers) < 1:
         ap.error("--episodes, --validation-episodes and --workers must be >= 1")
+    if len(args.run) > 1 and not args.validation:
+        ap.error("several run folders need --validation")
     try:
-        r = evaluate_run(args.run, args.episodes, args.validation_episodes, args.workers)
+        if args.validation:
+            print(validation_table(args.run, args.validation_episodes))
+            return 0
+        r = evaluate_run(args.run[0], args.episodes, args.validation_episodes, args.workers)
     except (ValueError, KeyError, OSError) as e:
         print(f"learned: error: {e}", file=sys.stderr)
         return 2
