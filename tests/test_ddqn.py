@@ -210,6 +210,7 @@ def test_dueling_head_by_hand():
     assert set(QNetwork(5, (8,)).init(jax.random.key(1), x)["params"]) == {"Dense_0", "Dense_1"}
 
 
+@pytest.mark.slow
 def test_lr_end_decays_the_learning_rate(curves):
     """lr_end < 1: cosine decay from lr (the first update equals the constant-lr one) to
     lr_end * lr; out-of-range shares are refused."""

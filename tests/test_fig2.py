@@ -145,10 +145,16 @@ def test_quick_is_the_same_with_1_and_2_host_devices(tmp_path):
     (["--total-steps", "0"], "unrecognized arguments: --total-steps 0"),  # training options belong to train.py
     (["--total-steps", "-1"], "unrecognized arguments: --total-steps -1"),
 ])
-def test_eval_bad_options(tmp_path, args, msg):
-    res = subprocess.run([sys.executable, str(ROOT / "eval.py"), "--out", str(tmp_path / "o"), *args],
-                         capture_output=True, text=True, cwd=ROOT)
-    assert res.returncode == 2 and msg in res.stderr and "Traceback" not in res.stderr
+def test_eval_bad_options(tmp_path, args, msg, capsys):
+    """One line on stderr, exit code 2 (in-process: an exception would fail the test instead)."""
+    from semuav_jax.cli import eval as cli_eval
+
+    try:
+        code = cli_eval.main(["--out", str(tmp_path / "o"), *args])
+    except SystemExit as e:  # argparse's own errors
+        code = e.code
+    err = capsys.readouterr().err
+    assert code == 2 and msg in err.strip().splitlines()[-1] and "Traceback" not in err  # argparse prints usage first
 
 
 def test_eval_keeps_close_bandwidths_apart(tmp_path):

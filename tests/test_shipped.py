@@ -57,6 +57,7 @@ def test_seed_metrics_is_a_loop_over_seeds_and_bandwidths():
                 np.testing.assert_array_equal(one[k], m[k][s, j])
 
 
+@pytest.mark.slow
 def test_validation_table_is_the_seeds_on_validation_layouts(capsys):
     """``learned --validation``: one row per seed, each the mean PSNR of that seed's greedy policy on
     the validation layouts (VALIDATION_SEED), not the test ones."""
