@@ -18,10 +18,9 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
-import flax.linen as nn
 from flax import serialization
 
-from semuav_jax.agents.ddqn import DDQNConfig, agent_input, command, q_network
+from semuav_jax.agents.ddqn import DDQNConfig, QNetwork, agent_input, command, q_network
 from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.runs import load_run, run_params, shipped_folder
 from semuav_jax.io import atomic_write
@@ -50,7 +49,7 @@ class Agent:
         return run_params(self.run)
 
     @property
-    def network(self) -> nn.Module:
+    def network(self) -> QNetwork:
         return q_network(self.params, self.config)
 
     @classmethod
