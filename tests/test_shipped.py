@@ -5,7 +5,7 @@ import jax
 import numpy as np
 import pytest
 
-from semuav_jax.agents.ddqn import DDQNConfig, make_train
+from semuav_jax.agents.ddqn import DDQNConfig, q_network
 from semuav_jax.agents.evaluate import evaluate_agent, seed_metrics
 from semuav_jax.agents.runs import EVAL_FILE, load_shipped, run_params, shipped_folder
 from semuav_jax.agents.scenarios import scenario_params
@@ -34,7 +34,7 @@ def test_recorded_evaluation_reproduces():
     ev = json.loads((shipped_folder() / EVAL_FILE).read_text())
     row = next(r for r in ev["rows"] if r["B"] == 25e3)
     params = scenario_params("random", reward_mode=run["reward_mode"], B=25e3, kappa_c=run["kappa_c"])
-    network = make_train(config, params).network
+    network = q_network(params, config)
     keys = episode_keys(TEST_SEED, ev["episodes"])
     m = seed_metrics(network, nets, config, keys, params, (25e3,))
     for s, recorded in enumerate(row["seeds"]):
@@ -46,7 +46,7 @@ def test_seed_metrics_is_a_loop_over_seeds_and_bandwidths():
     """The program vmapped over seeds and B gives each seed's own evaluation at each B exactly."""
     run, config, nets = load_shipped()
     params = scenario_params("random", reward_mode=run["reward_mode"], kappa_c=run["kappa_c"])
-    network = make_train(config, params).network
+    network = q_network(params, config)
     keys = episode_keys(7, 12)
     bandwidths = (5e3, 40e3)
     m = seed_metrics(network, nets, config, keys, params, bandwidths)
@@ -70,7 +70,7 @@ def test_validation_table_is_the_seeds_on_validation_layouts(capsys):
     assert main([str(shipped_folder()), "--validation", "--validation-episodes", "4"]) == 0
     rows = [r for r in capsys.readouterr().out.splitlines() if r.startswith(f"| {shipped_folder()}")]
     assert len(rows) == run["seeds"]
-    network = make_train(config, params).network
+    network = q_network(params, config)
     for s, row in enumerate(rows):
         w = jax.tree.map(lambda x: x[s], nets)
         val = evaluate_agent(network, w, config, keys, params)["mean_psnr"].mean()

@@ -97,7 +97,7 @@ def _main(argv=None) -> int:
     from tqdm import tqdm
 
     from semuav_jax import figures
-    from semuav_jax.agents.ddqn import make_train
+    from semuav_jax.agents.ddqn import q_network
     from semuav_jax.agents.runs import MODEL_FILE, load_run
     from semuav_jax.agents.scenarios import scenario_params
     from semuav_jax.curves import load_curves
@@ -121,7 +121,7 @@ def _main(argv=None) -> int:
         return 2
     train_s = time.time() - t0
     print(f"agent: {folder} ({jax.tree.leaves(nets)[0].shape[0]} seeds); JAX devices: {jax.device_count()}")
-    network = make_train(config, params).network
+    network = q_network(params, config)
     key = {"grid": args.grid, "agent": str(folder.resolve()), "weights_sha256": file_hash(folder / MODEL_FILE),
            **provenance(params)}
     with tqdm(total=fig2.stage_count(args.grid), desc="Fig. 2", unit="step", dynamic_ncols=True) as bar:

@@ -14,7 +14,7 @@ import dataclasses
 import numpy as np
 
 from baselines.report import BANDWIDTHS, flights, summary, tune
-from semuav_jax.agents.ddqn import DDQNConfig
+from semuav_jax.agents.ddqn import DDQNConfig, q_network
 from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams
@@ -106,14 +106,13 @@ def evaluate_run(folder, episodes: int = 1000, validation_episodes: int = 500, w
     import json
     from pathlib import Path
 
-    from semuav_jax.agents.ddqn import make_train
     from semuav_jax.agents.runs import EVAL_FILE, EVAL_MD, load_run, run_params
     from semuav_jax.io import atomic_write
     from semuav_jax.provenance import provenance
 
     run, config, nets = load_run(folder)
     params = run_params(run)
-    network = make_train(config, params).network
+    network = q_network(params, config)
     bandwidths = BANDWIDTHS if config.bandwidth_range is not None else (run["bandwidth"],)
     r = compare(network, nets, config, params, bandwidths, episodes, validation_episodes, workers, log=log)
     r.update(agent_command=run.get("command"), **(extra or {}), **provenance(params))
@@ -125,7 +124,6 @@ def evaluate_run(folder, episodes: int = 1000, validation_episodes: int = 500, w
 def validation_table(folders, episodes: int = 500, bandwidths=(5e3, 25e3, 40e3)) -> str:
     """Markdown: mean PSNR of every seed of each run folder on ``episodes`` layouts of
     ``keys.VALIDATION_SEED`` at each B, the numbers settings are chosen on (test layouts untouched)."""
-    from semuav_jax.agents.ddqn import q_network
     from semuav_jax.agents.runs import load_run, run_params
 
     keys = episode_keys(VALIDATION_SEED, episodes)
