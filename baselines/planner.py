@@ -24,13 +24,13 @@ from flax import struct
 from baselines import orienteering
 from baselines.evaluate import layouts
 from semuav_jax import channel
-from semuav_jax.control import BRAKE, approach_speed, home_command, speed_command, time_home, time_to_pass
+from semuav_jax.control import (BRAKE, STOP_BRAKE, approach_speed, home_command, range_radius, speed_command, time_home,
+                                time_to_pass)
 from semuav_jax.params import EnvParams
 
 PLAN_SPEEDS = (16.0, 20.0, 25.0)  # m/s, cruise speeds the planner chooses from
 PASS_SPEEDS = (4.0, 6.0, 8.0, 11.0, 15.0, 20.0)  # m/s, speeds through a device's range
 TARGETS = (0.85, 1.0)  # hover options: symbols as a share of M
-STOP_BRAKE = 0.6  # share of a_max used to slow down at a device (eq. 7.3)
 PLAN_SLACK_S = 18.0  # the plan may book T + this: eqs. 7.7-7.8 over-estimate flight time (docs/baselines.md)
 MARGIN_S = 1.0  # slack of the in-flight checks (skip a device, fly home)
 SERVICE_STEP_S = 0.25  # service times are rounded up to this grid: the DP is exact and fast on it
@@ -48,16 +48,13 @@ class PlanState:
     v_p: jax.Array
     s0: jax.Array
     idx: jax.Array
+    edge: jax.Array  # metres from the device where a pass has slowed to w: r_c (eq. 7.8) or 0 (eq. 7.11)
+    book: jax.Array  # 1: skip a device whose remaining hover no longer fits; 0: hover until leaving is required
 
 
 def hover_rate(params: EnvParams) -> float:
     """s0: symbols per second of a lone device right below the UAV, R(0) / beta (eq. 2.6)."""
     return float(channel.rate(0.0, params.H, params.P_n, params.B, params)) / float(params.beta)
-
-
-def range_radius(params: EnvParams):
-    """r_c: the ground radius of the communication range, sqrt(D_com^2 - H^2) (eq. 3.5)."""
-    return jnp.sqrt(params.D_com**2 - params.H**2)
 
 
 def _range_symbols(params: EnvParams, n: int = 400):
@@ -139,6 +136,7 @@ def make_plans(keys, params: EnvParams, speeds=PLAN_SPEEDS, workers: int = 2) ->
         order=jnp.asarray(order, jnp.int32), target=jnp.asarray(target, jnp.float32), w=jnp.asarray(w, jnp.float32),
         v_p=jnp.asarray(v_p, jnp.float32),
         s0=jnp.full((E,), hover_rate(params), jnp.float32), idx=jnp.zeros((E,), jnp.int32),
+        edge=jnp.full((E,), range_radius(params), jnp.float32), book=jnp.ones((E,), jnp.float32),
     )
 
 
@@ -152,7 +150,7 @@ def planner(ps: PlanState, s, params: EnvParams):
         valid = (i < N) & (n >= 0)
         n = jnp.maximum(n, 0)
         hover = jnp.maximum(ps.target[n] - s.m[n], 0.0) / ps.s0
-        need = time_to_pass(s.q, s.v, s.dev_pos[n], ps.v_p, params) + hover * (ps.w[n] == 0) + time_home(
+        need = time_to_pass(s.q, s.v, s.dev_pos[n], ps.v_p, params) + hover * (ps.w[n] == 0) * ps.book + time_home(
             s.dev_pos[n], jnp.zeros(2), ps.v_p, params)
         dist = jnp.linalg.norm(s.dev_pos[n] - s.q)
         finished = (s.m[n] >= jnp.minimum(ps.target[n], params.M) - 1e-3) | ((ps.w[n] > 0) & (dist <= ps.w[n] * params.tau + 1.0))
@@ -164,7 +162,7 @@ def planner(ps: PlanState, s, params: EnvParams):
     n = jnp.maximum(n, 0)
     p = s.dev_pos[n]
     # slow down to w at the edge of range (to rest over the device when w = 0), eq. 7.3
-    edge = jnp.where(ps.w[n] > 0, range_radius(params), 0.0)
+    edge = jnp.where(ps.w[n] > 0, ps.edge, 0.0)
     dist = jnp.linalg.norm(p - s.q)
     speed = jnp.minimum(ps.v_p, jnp.sqrt(ps.w[n] ** 2 + approach_speed(dist - edge, ps.v_p, params, STOP_BRAKE) ** 2))
     to_dev = speed_command(s.q, s.v, p, speed, params)

@@ -1,12 +1,13 @@
 """The reference table of docs/baselines.md: greedy and TSP at the paper's 8.9 m/s and at their
-tuned speed v_b*, the offline planner and the upper bound, per bandwidth.
+tuned speed v_b*, greedy-dwell and TSP-dwell at their tuned knobs, the open-loop planner, the exact
+receding-horizon planner and the certified bound, per bandwidth.
 
 ``python -m baselines.report [--episodes 1000] [--validation-episodes 500] [--json out.json]``
 
-v_b* is chosen per bandwidth on the validation layouts (``keys.VALIDATION_SEED``) from
-``SPEED_GRID`` as the best mean PSNR among the speeds that arrive in >= ``ARRIVAL_MIN`` of
-episodes, in one vmapped program per baseline; every reported number comes from the test
-layouts (``keys.TEST_SEED``), the same episodes for every policy.
+v_b* and the dwell knobs (v_c, k*, margin) are chosen per bandwidth on the validation layouts
+(``keys.VALIDATION_SEED``) from ``SPEED_GRID`` and ``DWELL_GRID`` as the best mean PSNR among the
+settings that arrive in >= ``ARRIVAL_MIN`` of episodes, in one vmapped program per baseline; every
+reported number comes from the test layouts (``keys.TEST_SEED``), the same episodes for every policy.
 """
 
 from __future__ import annotations
@@ -15,12 +16,16 @@ import argparse
 import json
 import time
 
+import jax
 import numpy as np
 
+from baselines import receding
 from baselines.bound import psnr_bound
+from baselines.dwell import DWELL_POLICIES, dwell_metrics, dwell_sweep, grid_points
 from baselines.evaluate import run, sweep, tsp_ranks
 from baselines.planner import make_plans, planner
 from baselines.policies import DEFAULT_V_B
+from baselines.travel_bound import flight_account, travel_bound
 from semuav_jax.io import atomic_write
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import make_params
@@ -30,26 +35,36 @@ SPEED_GRID = tuple(float(v) for v in range(6, 26))  # m/s, 6..25 in 1 m/s steps
 BANDWIDTHS = (5e3, 20e3, 25e3, 40e3)  # Hz
 ARRIVAL_MIN = 0.995
 TUNED = ("greedy", "tsp")
+DWELL_GRID = {"v_c": (22.0, 25.0), "k_star": (8.0, 16.0, 24.0, 32.0, 48.0, 64.0, 96.0, 128.0),
+              "margin": (-6.0, -4.0, -2.0, 0.0, 2.0)}  # m/s, symbols, s
 
 
 def tune(params, bandwidths=BANDWIDTHS, episodes: int = 500, grid=SPEED_GRID, workers: int = 2) -> dict:
     """v_b* per bandwidth for each of ``TUNED`` on the validation layouts, and the grid's means."""
     keys = episode_keys(VALIDATION_SEED, episodes)
     rank = tsp_ranks(keys, params, workers=workers)
-    out = {"grid": list(grid), "episodes": episodes}
+    out = {"grid": list(grid), "episodes": episodes, "dwell_grid": {k: list(v) for k, v in DWELL_GRID.items()}}
     for name in TUNED:
         m = sweep(name, keys, params, v_b=grid, B=bandwidths, rank=rank)
         psnr, arrived = m["mean_psnr"].mean(-1), m["arrived"].mean(-1)
         best = np.argmax(np.where(arrived >= ARRIVAL_MIN, psnr, -np.inf), axis=1)
         out[name] = {"v_star": [float(grid[i]) for i in best], "mean_psnr": psnr.tolist(), "arrived": arrived.tolist()}
+    points = grid_points(*DWELL_GRID.values())
+    for name in DWELL_POLICIES:
+        m = dwell_sweep(name, keys, params, *DWELL_GRID.values(), B=bandwidths, rank=rank)
+        psnr, arrived = m["mean_psnr"].mean(-1), m["arrived"].mean(-1)
+        best = np.argmax(np.where(arrived >= ARRIVAL_MIN, psnr, -np.inf), axis=1)
+        out[name] = {"knobs": [points[i] for i in best], "mean_psnr": psnr.tolist(), "arrived": arrived.tolist()}
     return out
 
 
-def flights(params, keys, tuned: dict, bandwidths=BANDWIDTHS, workers: int = 2, rank=None, plans=None) -> list[dict]:
+def flights(params, keys, tuned: dict, bandwidths=BANDWIDTHS, workers: int = 2, rank=None, plans=None,
+            account: bool = False) -> list[dict]:
     """Per-episode metrics (dicts of (E,) arrays) on ``keys`` at each bandwidth: greedy and TSP at
     the paper's speed and at their tuned v_b* (``tuned`` from :func:`tune`), and the planner.
     ``rank`` (TSP ranks of ``keys``) and ``plans`` (one PlanState per bandwidth) are solved here
-    unless given."""
+    unless given. ``account``: the exact planner's flights also measured against the bound's
+    relaxation (``travel_bound.flight_account``)."""
     rank = tsp_ranks(keys, params, workers=workers) if rank is None else rank
     speeds = sorted({DEFAULT_V_B, *[v for n in TUNED for v in tuned[n]["v_star"]]})
     swept = {n: sweep(n, keys, params, v_b=speeds, B=bandwidths, rank=rank) for n in TUNED}
@@ -60,21 +75,36 @@ def flights(params, keys, tuned: dict, bandwidths=BANDWIDTHS, workers: int = 2, 
         for n in TUNED:
             for label, v in ((f"{n} {DEFAULT_V_B:g}", DEFAULT_V_B), (f"{n} v_b*", tuned[n]["v_star"][j])):
                 row[label] = {"v_b": v, **{k: x[j, speeds.index(v)] for k, x in swept[n].items()}}
+        for n, policy in DWELL_POLICIES.items():
+            v_c, k_star, margin = tuned[n]["knobs"][j]
+            m = dwell_metrics(policy, keys, pb, v_c, k_star, margin, rank)
+            row[n] = {"v_b": v_c, "knobs": [v_c, k_star, margin], **{k: np.asarray(x) for k, x in m.items()}}
         t1 = time.perf_counter()
         plan = make_plans(keys, pb, workers=workers) if plans is None else plans[j]
         row["planner"] = {"v_b": None, **{k: np.asarray(v) for k, v in run(planner, keys, pb, plan).items()},
                           "wall_s": time.perf_counter() - t1}
+        t1 = time.perf_counter()
+        m, tr = receding.fly(keys, pb, workers=workers, trace=account)
+        row["exact planner"] = {"v_b": None, **m, "wall_s": time.perf_counter() - t1}
+        if account:
+            row["exact planner"]["account"] = flight_account(jax.tree.map(np.asarray, tr), keys, pb)
         out.append(row)
     return out
 
 
-def summary(m: dict) -> dict:
-    """Mean PSNR with its t interval, coverage and arrival with its Wilson interval of per-episode metrics."""
+def summary(m: dict, T_s: float | None = None) -> dict:
+    """Mean PSNR with its t interval, coverage and arrival with its Wilson interval of per-episode
+    metrics; with the mission length ``T_s``, the time left unused (T - mission time, s) and the
+    devices left unserved (m_n = 0: coverage N - coverage is not known here, so the mean of T - t)."""
     mean, ci = mean_ci(m["mean_psnr"])
     arrived = np.asarray(m["arrived"], np.float64)
     lo, hi = wilson_interval(arrived.mean(), arrived.size)
     return {"mean_psnr": mean, "ci95": ci, "coverage": float(np.mean(m["coverage"])), "arrived": float(arrived.mean()),
-            "arrived_wilson95": [float(lo), float(hi)]}
+            "arrived_wilson95": [float(lo), float(hi)]} | (
+        {} if T_s is None else {"unused_s": float(np.mean(T_s - np.asarray(m["mission_time"], np.float64)))})
+
+
+EXACT_VS = ("planner", "greedy-dwell", "tsp-dwell")  # the exact planner's target: the best of these + 0.5 dB
 
 
 def report(params, bandwidths=BANDWIDTHS, episodes: int = 1000, validation_episodes: int = 500, workers: int = 2,
@@ -82,42 +112,71 @@ def report(params, bandwidths=BANDWIDTHS, episodes: int = 1000, validation_episo
     """Every number of the table (JSON-ready)."""
     t0 = time.perf_counter()
     tuned = tune(params, bandwidths, validation_episodes, workers=workers)
-    log(f"v_b* chosen on {validation_episodes} validation layouts ({time.perf_counter() - t0:.0f} s): "
-        + ", ".join(f"{n} {tuned[n]['v_star']}" for n in TUNED))
+    log(f"v_b* and dwell knobs chosen on {validation_episodes} validation layouts ({time.perf_counter() - t0:.0f} s): "
+        + ", ".join(f"{n} {tuned[n]['v_star']}" for n in TUNED) + "; "
+        + ", ".join(f"{n} {tuned[n]['knobs']}" for n in DWELL_POLICIES))
     keys = episode_keys(TEST_SEED, episodes)
+    T_s = params.K * float(params.tau)
     rows = []
-    for b, fl in zip(bandwidths, flights(params, keys, tuned, bandwidths, workers)):
-        row = {"B": float(b), "policies": {k: {"v_b": m["v_b"], **summary(m)} for k, m in fl.items()}}
-        row["policies"]["planner"]["wall_s"] = fl["planner"]["wall_s"]
+    for b, fl in zip(bandwidths, flights(params, keys, tuned, bandwidths, workers, account=True)):
+        row = {"B": float(b), "policies": {k: {"v_b": m["v_b"], **({"knobs": m["knobs"]} if "knobs" in m else {}),
+                                               **summary(m, T_s)} for k, m in fl.items()}}
+        for name in ("planner", "exact planner"):
+            row["policies"][name]["wall_s"] = fl[name]["wall_s"]
+            row["policies"][name]["unserved"] = float(np.mean(params.N - np.asarray(fl[name]["coverage"])))
         row["planner_minus_tuned_greedy"] = mean_ci(fl["planner"]["mean_psnr"] - fl["greedy v_b*"]["mean_psnr"])
-        row["bound"] = float(psnr_bound(keys, params.replace(B=b)).mean())
+        best = max(EXACT_VS, key=lambda n: row["policies"][n]["mean_psnr"])
+        row["exact_minus_best"] = {"vs": best, "diff": mean_ci(fl["exact planner"]["mean_psnr"] - fl[best]["mean_psnr"])}
+        pb = params.replace(B=b)
+        t1 = time.perf_counter()
+        bound = np.minimum(psnr_bound(keys, pb), travel_bound(keys, pb))
+        row["bound"] = float(bound.mean())
+        row["bound_wall_s"] = time.perf_counter() - t1
+        row["bound_minus_exact"] = mean_ci(bound - fl["exact planner"]["mean_psnr"])
+        row["account"] = {k: float(np.mean(v)) for k, v in fl["exact planner"].pop("account").items()}
         rows.append(row)
-        d, ci = row["planner_minus_tuned_greedy"]
-        log(f"B = {b / 1e3:g} kHz: planner {row['policies']['planner']['mean_psnr']:.2f} dB "
-            f"({d:+.2f} ± {ci:.2f} vs greedy at v_b*), bound {row['bound']:.2f} dB, "
-            f"planner {fl['planner']['wall_s']:.0f} s")
+        d, ci = row["exact_minus_best"]["diff"]
+        log(f"B = {b / 1e3:g} kHz: exact planner {row['policies']['exact planner']['mean_psnr']:.2f} dB "
+            f"({d:+.2f} ± {ci:.2f} vs {best}), bound {row['bound']:.2f} dB; planner {fl['planner']['wall_s']:.0f} s, "
+            f"exact planner {fl['exact planner']['wall_s']:.0f} s, bound {row['bound_wall_s']:.0f} s")
     return {"episodes": episodes, "test_seed": TEST_SEED, "validation_seed": VALIDATION_SEED, "N": params.N,
             "arrival_min": ARRIVAL_MIN, "tuning": tuned, "rows": rows, "wall_s": time.perf_counter() - t0}
 
 
+def setting(s: dict) -> str:
+    """How a row names its setting: the speed v_b, the dwell knobs, or 'plan'."""
+    if "knobs" in s:
+        v, k, m = s["knobs"]
+        return f"v_c {v:g}, k* {k:g}, margin {m:g} s"
+    return "plan" if s["v_b"] is None else f"{s['v_b']:g}"
+
+
 def markdown(r: dict) -> str:
     lines = [
-        f"{r['episodes']} test layouts (seed {r['test_seed']}); v_b* from {r['tuning']['episodes']} validation layouts "
-        f"(seed {r['validation_seed']}), N = {r['N']}",
+        f"{r['episodes']} test layouts (seed {r['test_seed']}); v_b* and dwell knobs from {r['tuning']['episodes']} "
+        f"validation layouts (seed {r['validation_seed']}), N = {r['N']}",
         "",
-        "| B (kHz) | policy | v_b (m/s) | mean PSNR (dB) ± 95 % CI | coverage | arrival |",
-        "|---|---|---|---|---|---|",
+        "| B (kHz) | policy | setting (m/s) | mean PSNR (dB) ± 95 % CI | coverage | arrival | unused time (s) |",
+        "|---|---|---|---|---|---|---|",
     ]
     for row in r["rows"]:
         for name, s in row["policies"].items():
-            v = "plan" if s["v_b"] is None else f"{s['v_b']:g}"
-            lines.append(f"| {row['B'] / 1e3:g} | {name} | {v} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | "
-                         f"{s['coverage']:.2f} | {100 * s['arrived']:.1f} % |")
-        lines.append(f"| {row['B'] / 1e3:g} | bound (no policy exceeds) | | {row['bound']:.2f} | | |")
-    lines += ["", "| B (kHz) | planner − greedy at v_b* (dB, paired 95 % CI) |", "|---|---|"]
+            lines.append(f"| {row['B'] / 1e3:g} | {name} | {setting(s)} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | "
+                         f"{s['coverage']:.2f} | {100 * s['arrived']:.1f} % | {s['unused_s']:.1f} |")
+        lines.append(f"| {row['B'] / 1e3:g} | bound (no policy that arrives exceeds) | | {row['bound']:.2f} | | | |")
+    lines += ["", "| B (kHz) | exact planner − best of planner, greedy-dwell, TSP-dwell (paired 95 % CI) | "
+              "bound − exact planner | planner − greedy at v_b* |", "|---|---|---|---|"]
     for row in r["rows"]:
-        d, ci = row["planner_minus_tuned_greedy"]
-        lines.append(f"| {row['B'] / 1e3:g} | {d:+.2f} ± {ci:.2f} |")
+        e, b, g = row["exact_minus_best"], row["bound_minus_exact"], row["planner_minus_tuned_greedy"]
+        lines.append(f"| {row['B'] / 1e3:g} | {e['diff'][0]:+.2f} ± {e['diff'][1]:.2f} (vs {e['vs']}) | "
+                     f"{b[0]:.2f} ± {b[1]:.2f} | {g[0]:+.2f} ± {g[1]:.2f} |")
+    lines += ["", "Exact planner against the bound's relaxation (means over the test layouts; docs/baselines.md):", "",
+              "| B (kHz) | seconds with data | without data, flown | dead seconds the relaxation allows (same discs) "
+              "| unused after arrival | symbols per second with data / (R0 / β) |", "|---|---|---|---|---|---|"]
+    for row in r["rows"]:
+        a = row["account"]
+        lines.append(f"| {row['B'] / 1e3:g} | {a['data_s']:.1f} | {a['dead_s']:.1f} | {a['relaxed_dead_s']:.1f} | "
+                     f"{a['unused_s']:.1f} | {a['rate_share']:.2f} |")
     lines += ["", f"Wall time: {r['wall_s']:.0f} s"]
     return "\n".join(lines)
 

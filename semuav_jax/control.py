@@ -15,6 +15,12 @@ import jax.numpy as jnp
 from semuav_jax.params import EnvParams
 
 BRAKE = 0.25  # share of a_max an approach brakes with; the rest steers onto the target
+STOP_BRAKE = 0.6  # share of a_max used to come to rest over a device (eq. 7.3)
+
+
+def range_radius(params: EnvParams):
+    """r_c: the ground radius of the communication range, sqrt(D_com^2 - H^2) (eq. 3.5)."""
+    return jnp.sqrt(jnp.maximum(params.D_com**2 - params.H**2, 0.0))
 
 
 def airspace_cap(q, v_des, params: EnvParams):

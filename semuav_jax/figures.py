@@ -21,8 +21,12 @@ STYLE = {
     "tsp 8.9": dict(color="C2", marker="^", ls=":", mfc="none", label="TSP, 8.9 m/s"),
     "greedy v_b*": dict(color="C0", marker="s", label="greedy, tuned v_b*"),
     "tsp v_b*": dict(color="C2", marker="^", label="TSP, tuned v_b*"),
-    "planner": dict(color="C4", marker="D", label="offline planner"),
+    "greedy-dwell": dict(color="C1", marker="v", label="greedy-dwell, tuned"),
+    "tsp-dwell": dict(color="C8", marker="P", label="TSP-dwell, tuned"),
+    "planner": dict(color="C4", marker="D", ls="--", mfc="none", label="open-loop planner"),
+    "exact planner": dict(color="C4", marker="D", label="exact planner (receding horizon)"),
 }
+BANDS = ("agent", "greedy-dwell", "tsp-dwell", "planner", "exact planner")  # panel (b): policies with their own speed
 
 
 def save_figure(fig, path: Path, dpi: int = 120):
@@ -62,14 +66,14 @@ def fig2a(r: dict, path):
 
 
 def fig2b(r: dict, path):
-    """At B = 25 kHz: greedy and TSP vs their speed (PSNR left, arrival right); the agent and the planner,
-    which set their own speeds, as bands."""
+    """At B = 25 kHz: greedy and TSP vs their speed (PSNR left, arrival right); the agent, the dwell
+    rules and the planners, which set their own speeds, as bands."""
     v = np.array(r["velocities"])
     row = next(row for row in r["panel_a"] if row["B"] == 25e3)
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.2), gridspec_kw={"width_ratios": [3, 2]})
-    for name in ("agent", "planner"):
+    for name in (n for n in BANDS if n == "agent" or n in row):
         m, e = row["agent"] if name == "agent" else row[name]["mean_psnr"]
-        ax.axhline(m, color=STYLE[name]["color"], label=STYLE[name]["label"] + " (own speed)")
+        ax.axhline(m, color=STYLE[name]["color"], ls=STYLE[name].get("ls", "-"), label=STYLE[name]["label"] + " (own speed)")
         ax.axhspan(m - e, m + e, color=STYLE[name]["color"], alpha=0.15)
     n = None
     for name in ("greedy", "tsp"):
@@ -89,15 +93,15 @@ def fig2b(r: dict, path):
             title=f"arrival, Wilson 95 % intervals over {n} layouts")
     for a in (ax, ax2):
         a.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc="lower center")
+    ax.legend(fontsize=7, loc="lower center", ncol=2)
     save_figure(fig, path)
 
 
 def fig2c(paths: dict, params, path):
     """Trajectories on the paper layout, one panel per policy: the path coloured by speed, each device's
     seconds in range written beside it and drawn as a ring whose size grows with them."""
-    names = [n for n in ("agent", "greedy v_b*", "tsp v_b*", "planner") if n in paths]
-    fig, axes = plt.subplots(2, 2, figsize=(12, 6.3), sharex=True, sharey=True)
+    names = [n for n in ("agent", "tsp v_b*", "greedy-dwell", "tsp-dwell", "planner", "exact planner") if n in paths]
+    fig, axes = plt.subplots(2, 3, figsize=(17, 6.3), sharex=True, sharey=True)
     radius = float(np.sqrt(float(params.D_com) ** 2 - float(params.H) ** 2))
     pts = np.concatenate([np.array([[0.0, 0.0], [float(params.Lx), float(params.Ly)]])] + [paths[n]["q"] for n in names])
     lo, hi = pts.min(0) - 10.0, pts.max(0) + 10.0  # the UAV may leave the area (docs/model.md eq. 3.3)

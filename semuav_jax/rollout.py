@@ -6,8 +6,8 @@ A policy is a pure function ``policy(policy_state, env_state, params) -> (accele
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import partial
-from typing import Callable
 
 import jax
 import jax.numpy as jnp
@@ -84,3 +84,46 @@ def rollout(policy: Policy, keys, params: EnvParams, policy_state=None, init_sta
     if not isinstance(metrics["valid"], jax.core.Tracer) and not bool(jnp.all(metrics["valid"])):
         raise ValueError("the simulation left float32 (a rate, power or return overflowed): check the parameters' scale")
     return metrics, tr
+
+
+@partial(jax.jit, static_argnames=("policy", "trace"))
+def _segment(policy, states, policy_state, draws, params, trace):
+    """The slots of ``draws`` (E, R) from ``states``: the body of :func:`episode` over R slots."""
+
+    def one(state, ps, u):
+        def body(carry, ui):
+            state, ps = carry
+            accel, ps = policy(ps, state, params)
+            state, rew = transition_u(ui, state, accel, params)
+            return (state, ps), ({f: getattr(state, f) for f in TRACE_FIELDS} | {"reward": rew} if trace else None)
+
+        return jax.lax.scan(body, (state, ps), u)
+
+    (states, policy_state), tr = jax.vmap(one)(states, policy_state, draws)
+    return states, policy_state, tr
+
+
+def rollout_replanned(policy: Policy, keys, params: EnvParams, replan: Callable, every: int, trace=False):
+    """``rollout`` for a policy that a host function re-plans every ``every`` slots (receding horizon).
+
+    ``replan(states, policy_state) -> policy_state`` runs outside ``jit`` on the batch of current
+    states (``policy_state`` is None at t = 0); between calls the episodes advance in one jitted,
+    vmapped program. Same episodes as :func:`rollout` for the same keys (layouts and delays).
+    Returns ``(metrics, trace)`` as :func:`rollout` does.
+    """
+    validate_params(params)
+    if int(every) != every or every < 1:
+        raise ValueError(f"every must be an integer number of slots >= 1, got {every!r}")
+    keys = jnp.asarray(keys)
+    split = jax.vmap(jax.random.split)(keys)
+    states = jax.vmap(reset_state, (0, None))(split[:, 0], params)
+    draws = jax.vmap(delay_draws, (0, None))(split[:, 1], params)
+    ps, parts = None, []
+    for t0 in range(0, params.K, int(every)):
+        ps = replan(states, ps)
+        states, ps, tr = _segment(policy, states, ps, draws[:, t0:t0 + int(every)], params, trace)
+        parts.append(tr)
+    metrics = jax.vmap(episode_metrics, (0, None))(states, params)
+    if not bool(jnp.all(metrics["valid"])):
+        raise ValueError("the simulation left float32 (a rate, power or return overflowed): check the parameters' scale")
+    return metrics, (jax.tree.map(lambda *x: jnp.concatenate(x, axis=1), *parts) if trace else None)

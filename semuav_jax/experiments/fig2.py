@@ -2,10 +2,12 @@
 (docs/RESULTS.md).
 
 (a) mean PSNR vs the devices' bandwidth B: the agent (mean over seeds, t interval across seeds),
-greedy and TSP at the paper's 8.9 m/s and at their tuned speed v_b*, the offline planner;
-(b) at B = 25 kHz: greedy and TSP vs their speed v_b, with arrival; the agent and the planner as bands;
-(c) the paper layout at B = 25 kHz: the trajectories of the agent, greedy and TSP at v_b* and the
-planner, coloured by speed, with each device's dwell.
+greedy and TSP at the paper's 8.9 m/s and at their tuned speed v_b*, greedy-dwell and TSP-dwell at
+their tuned knobs, the open-loop planner and the exact receding-horizon planner;
+(b) at B = 25 kHz: greedy and TSP vs their speed v_b, with arrival; the agent, the dwell rules and
+the planners, which set their own speeds, as bands;
+(c) the paper layout at B = 25 kHz: the trajectories of the agent, TSP at v_b*, TSP-dwell, the two
+planners, coloured by speed, with each device's dwell.
 
 Every point uses the same test layouts (``keys.TEST_SEED``); v_b* is chosen on validation layouts
 (``keys.VALIDATION_SEED``). :func:`behaviour` measures what explains the numbers: speed while
@@ -22,7 +24,8 @@ import jax.numpy as jnp
 import numpy as np
 from flax import serialization
 
-from baselines import DEFAULT_V_B, init_state, sweep, tsp_ranks
+from baselines import DEFAULT_V_B, init_state, receding, sweep, tsp_ranks
+from baselines.dwell import DWELL_POLICIES, init_dwell
 from baselines.planner import PlanState, make_plans, planner
 from baselines.policies import POLICIES
 from baselines.report import flights, tune
@@ -74,8 +77,9 @@ def summarize(per_episode: dict) -> dict:
 def traced_runs(network, nets, config: DDQNConfig, keys, params: EnvParams, tuned_speeds: dict, workers: int = 2,
                 rank=None, plan=None):
     """Traced rollouts at ``params.B``: each agent seed, greedy and TSP at 8.9 m/s and at v_b*
-    (``tuned_speeds``: name -> v_b*) and the planner. ``rank`` (TSP ranks of ``keys``) and ``plan``
-    (the planner's PlanState at ``params.B``) are solved here unless given.
+    (``tuned_speeds``: name -> v_b*, and the dwell rules' name -> (v_c, k*, margin)), the dwell rules,
+    the planner and the exact planner. ``rank`` (TSP ranks of ``keys``) and ``plan`` (the planner's
+    PlanState at ``params.B``) are solved here unless given.
     Returns {name: (metrics, trace)}."""
     runs = {}
     for s in range(jax.tree.leaves(nets)[0].shape[0]):
@@ -88,8 +92,12 @@ def traced_runs(network, nets, config: DDQNConfig, keys, params: EnvParams, tune
         for label, v in ((f"{name} {DEFAULT_V_B:g}", DEFAULT_V_B), (f"{name} v_b*", tuned_speeds[name])):
             states = jax.vmap(init_state, (None, 0))(jnp.float32(v), jnp.asarray(ranks[name]))
             runs[label] = rollout(POLICIES[name], keys, params, states, trace=True)
+    for name, policy in DWELL_POLICIES.items():
+        states = jax.vmap(init_dwell, (None, None, None, 0))(*tuned_speeds[name], jnp.asarray(ranks["tsp"]))
+        runs[name] = rollout(policy, keys, params, states, trace=True)
     plan = make_plans(keys, params, workers=workers) if plan is None else plan
     runs["planner"] = rollout(planner, keys, params, plan, trace=True)
+    runs["exact planner"] = receding.fly(keys, params, workers=workers, trace=True)
     return {k: jax.tree.map(np.asarray, v) for k, v in runs.items()}
 
 
@@ -191,7 +199,7 @@ def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, 
     plans = [stage(f"planner at {khz(b)} kHz", lambda b=b: make_plans(keys, params.replace(B=b), workers=workers),
                    save=_plan_dict, load=lambda d: PlanState(**{k: jnp.asarray(v) for k, v in d.items()}))
              for b in sweep_B]
-    refs = stage("references flown (greedy, TSP at 8.9 m/s and v_b*; planner)",
+    refs = stage("references flown (greedy, TSP at 8.9 m/s and v_b*; greedy-dwell, TSP-dwell; both planners)",
                  lambda: flights(params, keys, tuned, sweep_B, workers, rank=rank, plans=plans))
     agent = stage("agent evaluated", lambda: seed_metrics(network, nets, config, keys, params, sweep_B))
     out = {"layouts": len(keys), "test_seed": TEST_SEED, "validation_seed": VALIDATION_SEED,
@@ -213,7 +221,8 @@ def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, 
     out["behaviour"] = {}
     for b in sorted({min(sweep_B), PANEL_B}):
         ib = sweep_B.index(b)
-        tuned_at_b = {n: tuned[n]["v_star"][ib] for n in ("greedy", "tsp")}
+        tuned_at_b = {n: tuned[n]["v_star"][ib] for n in ("greedy", "tsp")} | {
+            n: tuned[n]["knobs"][ib] for n in DWELL_POLICIES}
         at_b = params.replace(B=b)
 
         def measure(at_b=at_b, tuned_at_b=tuned_at_b, ib=ib):
@@ -251,16 +260,17 @@ def panel_b(keys, params: EnvParams, velocities, rank) -> dict:
 
 def markdown(r: dict) -> str:
     """The tables of docs/RESULTS.md: panel (a) with the agent's margins, panel (b), and the behaviour at 25 kHz."""
-    refs = ("greedy 8.9", "tsp 8.9", "greedy v_b*", "tsp v_b*", "planner")
+    refs = ("greedy 8.9", "tsp 8.9", "greedy v_b*", "tsp v_b*", "greedy-dwell", "tsp-dwell", "planner", "exact planner")
+    margins = ("tsp v_b*", "tsp-dwell", "planner", "exact planner")
     lines = [f"{r['layouts']} test layouts (seed {r['test_seed']}); DDQN: mean of {r['seeds']} seeds ± t interval "
              f"across seeds; references ± 95 % interval over layouts; v_b* from {r['validation_layouts']} validation "
              f"layouts (seed {r['validation_seed']}).", "",
-             "| B (kHz) | DDQN (dB) | " + " | ".join(refs) + " | DDQN − greedy v_b* | DDQN − TSP v_b* | DDQN − planner |",
-             "|---" * (5 + len(refs)) + "|"]
+             "| B (kHz) | DDQN (dB) | " + " | ".join(refs) + " | " + " | ".join(f"DDQN − {n}" for n in margins) + " |",
+             "|---" * (2 + len(refs) + len(margins)) + "|"]
     for row in r["panel_a"]:
         cells = [f"{row[n]['mean_psnr'][0]:.2f}" + (f" ({row[n]['v_b']:g} m/s)" if "v_b*" in n else "") for n in refs]
-        margins = [f"{row[f'agent minus {n}'][0]:+.2f} ± {row[f'agent minus {n}'][1]:.2f}" for n in ("greedy v_b*", "tsp v_b*", "planner")]
-        lines.append(f"| {row['B'] / 1e3:g} | {row['agent'][0]:.2f} ± {row['agent'][1]:.2f} | " + " | ".join(cells + margins) + " |")
+        diffs = [f"{row[f'agent minus {n}'][0]:+.2f} ± {row[f'agent minus {n}'][1]:.2f}" for n in margins]
+        lines.append(f"| {row['B'] / 1e3:g} | {row['agent'][0]:.2f} ± {row['agent'][1]:.2f} | " + " | ".join(cells + diffs) + " |")
     lines += ["", "Arrival: " + ", ".join(f"{row['B'] / 1e3:g} kHz DDQN {100 * row['agent_arrived']:.1f} % "
                                          f"(shield {100 * row['agent_shield_share']:.1f} % of slots)" for row in r["panel_a"]), "",
               "| v_b (m/s), B = 25 kHz | " + " | ".join(f"{v:g}" for v in r["velocities"]) + " |",

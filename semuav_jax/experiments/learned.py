@@ -13,14 +13,19 @@ import dataclasses
 
 import numpy as np
 
-from baselines.report import BANDWIDTHS, flights, summary, tune
+from baselines.report import BANDWIDTHS, flights, setting, summary, tune
 from semuav_jax.agents.ddqn import DDQNConfig, q_network
 from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams
 from semuav_jax.stats import mean_ci, wilson_interval
 
-REFERENCES = ("greedy v_b*", "tsp v_b*")  # the margins that must be positive
+REFERENCES = ("greedy v_b*", "tsp v_b*", "greedy-dwell", "tsp-dwell")  # the fixed rules, tuned: margins that must be positive
+MARGINS = (*REFERENCES, "planner", "exact planner")  # every reference the agent is compared with, paired
+
+
+def _header(names) -> str:
+    return " | ".join(f"− {n.replace('tsp', 'TSP')}" for n in names)
 
 
 def compare(network, nets, config: DDQNConfig, params: EnvParams, bandwidths=BANDWIDTHS, episodes: int = 1000,
@@ -38,11 +43,12 @@ def compare(network, nets, config: DDQNConfig, params: EnvParams, bandwidths=BAN
     rows = []
     for j, (b, ref) in enumerate(zip(bandwidths, refs)):
         agent = [{k: v[s, j] for k, v in per_seed.items()} for s in range(seeds)]
-        row = {"B": float(b), "references": {k: {"v_b": m["v_b"], **summary(m)} for k, m in ref.items()},
+        row = {"B": float(b), "references": {k: {"v_b": m["v_b"], **({"knobs": m["knobs"]} if "knobs" in m else {}),
+                                              **summary(m)} for k, m in ref.items()},
                "seeds": []}
         for m in agent:
             s = {**summary(m), "shield_share": float(np.mean(m["shield_share"]))}
-            for name in (*REFERENCES, "planner"):
+            for name in MARGINS:
                 s[f"minus {name}"] = mean_ci(m["mean_psnr"] - ref[name]["mean_psnr"])
             row["seeds"].append(s)
         if ablate_shield and config.shield_margin is not None:
@@ -51,7 +57,7 @@ def compare(network, nets, config: DDQNConfig, params: EnvParams, bandwidths=BAN
                 s["mean_psnr_without_shield"] = float(np.mean(bare["mean_psnr"][i, j]))
         means = [s["mean_psnr"] for s in row["seeds"]]
         row["agent"] = {"mean_psnr": mean_ci(means)}
-        for name in (*REFERENCES, "planner"):
+        for name in MARGINS:
             row["agent"][f"minus {name}"] = mean_ci([s[f"minus {name}"][0] for s in row["seeds"]])
         arrived = np.concatenate([np.asarray(m["arrived"], np.float64) for m in agent])
         row["agent"]["arrived"] = float(arrived.mean())
@@ -61,7 +67,7 @@ def compare(network, nets, config: DDQNConfig, params: EnvParams, bandwidths=BAN
         a = row["agent"]
         log(f"B = {b / 1e3:g} kHz: agent {a['mean_psnr'][0]:.2f} ± {a['mean_psnr'][1]:.2f} dB over "
             f"{len(means)} seeds ({', '.join(f'{x:.2f}' for x in means)}); "
-            + ", ".join(f"{n} {a['minus ' + n][0]:+.2f} ± {a['minus ' + n][1]:.2f}" for n in (*REFERENCES, "planner")))
+            + ", ".join(f"{n} {a['minus ' + n][0]:+.2f} ± {a['minus ' + n][1]:.2f}" for n in MARGINS))
     return {"episodes": episodes, "test_seed": TEST_SEED, "validation_seed": VALIDATION_SEED,
             "validation_episodes": validation_episodes, "tuning": tuned, "rows": rows}
 
@@ -72,30 +78,29 @@ def markdown(r: dict) -> str:
         f"{r['episodes']} test layouts (seed {r['test_seed']}), never used in training or selection; "
         f"v_b* from {r['validation_episodes']} validation layouts (seed {r['validation_seed']}).",
         "",
-        "| B (kHz) | agent, mean of seeds (dB) | − greedy v_b* | − TSP v_b* | − planner | arrival | shield share |",
-        "|---|---|---|---|---|---|---|",
+        f"| B (kHz) | agent, mean of seeds (dB) | {_header(MARGINS)} | arrival | shield share |",
+        "|---" * (4 + len(MARGINS)) + "|",
     ]
     for row in r["rows"]:
         a = row["agent"]
-        cells = [f"{a[f'minus {n}'][0]:+.2f} ± {a[f'minus {n}'][1]:.2f}" for n in (*REFERENCES, "planner")]
+        cells = [f"{a[f'minus {n}'][0]:+.2f} ± {a[f'minus {n}'][1]:.2f}" for n in MARGINS]
         lines.append(f"| {row['B'] / 1e3:g} | {a['mean_psnr'][0]:.2f} ± {a['mean_psnr'][1]:.2f} | " + " | ".join(cells)
                      + f" | {100 * a['arrived']:.1f} % | {100 * a['shield_share']:.1f} % |")
     lines += ["", "Across seeds: mean of the seeds' means ± the t interval (95 %) over seeds.", "",
-              "| B (kHz) | seed | mean PSNR (dB) | − greedy v_b* (paired 95 % CI) | − TSP v_b* | − planner | arrival "
+              f"| B (kHz) | seed | mean PSNR (dB) | {_header(MARGINS)} (paired 95 % CIs) | arrival "
               "| shield share | arrival without shield |",
-              "|---|---|---|---|---|---|---|---|---|"]
+              "|---" * (6 + len(MARGINS)) + "|"]
     for row in r["rows"]:
         for i, s in enumerate(row["seeds"]):
-            cells = [f"{s[f'minus {n}'][0]:+.2f} ± {s[f'minus {n}'][1]:.2f}" for n in (*REFERENCES, "planner")]
+            cells = [f"{s[f'minus {n}'][0]:+.2f} ± {s[f'minus {n}'][1]:.2f}" for n in MARGINS]
             no = s.get("arrived_without_shield")
             lines.append(f"| {row['B'] / 1e3:g} | {i} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | " + " | ".join(cells)
                          + f" | {100 * s['arrived']:.1f} % | {100 * s['shield_share']:.1f} % | "
                          + ("" if no is None else f"{100 * no:.1f} %") + " |")
-    lines += ["", "| B (kHz) | reference | v_b (m/s) | mean PSNR (dB) | coverage | arrival |", "|---|---|---|---|---|---|"]
+    lines += ["", "| B (kHz) | reference | setting (m/s) | mean PSNR (dB) | coverage | arrival |", "|---|---|---|---|---|---|"]
     for row in r["rows"]:
         for name, s in row["references"].items():
-            v = "plan" if s["v_b"] is None else f"{s['v_b']:g}"
-            lines.append(f"| {row['B'] / 1e3:g} | {name} | {v} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | "
+            lines.append(f"| {row['B'] / 1e3:g} | {name} | {setting(s)} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | "
                          f"{s['coverage']:.2f} | {100 * s['arrived']:.1f} % |")
     return "\n".join(lines)
 
