@@ -21,10 +21,10 @@ from semuav_jax.control import BRAKE, STOP_BRAKE, range_radius
 from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import rollout_replanned
 
-PASS_SPEEDS = (2.0, 4.0, 6.0, 8.0, 11.0, 15.0, 20.0)  # m/s at the device (eq. 7.11)
-PLAN_SPEEDS = (20.0, 25.0)  # m/s, cruise speeds of the first plan; later plans keep the one chosen
-HOVER_SYMBOLS = (8, 16, 24, 32, 48, 64, 96, 128, 160, 192, 224, 256)  # stop targets (symbols, capped at M)
-REPLAN_EVERY_S = 8.0  # seconds between two plans
+PASS_SPEEDS = (3.0, 6.0, 10.0, 15.0)  # m/s at the device (eq. 7.11)
+PLAN_SPEEDS = (25.0,)  # m/s, cruise speeds of the first plan; later plans keep the one chosen
+HOVER_SYMBOLS = (16, 32, 48, 64, 96, 128, 192, 256)  # stop targets (symbols, capped at M)
+REPLAN_EVERY_S = 12.0  # seconds between two plans
 TURN_SHARE = 0.5  # share of w / a_max booked for turning at a device (the angle is the route's)
 SLACK_SHARE = 0.1  # a plan may book the time left x (1 + this): the legs over-estimate the flight
 
