@@ -94,7 +94,7 @@ def layout_bound(dead, gains, base, params: EnvParams) -> float:
     while np.any(lo < hi):
         mid = (lo + hi) // 2
         fewer = above(vals[mid]).sum(axis=1) < budget
-        hi, lo = np.where(fewer, mid, hi), np.where(fewer, lo, mid + 1)
+        hi, lo = np.where(fewer, mid, hi), np.where(fewer | (lo == hi), lo, mid + 1)
     lam = vals[lo]
     cnt = above(lam)
     value = (G[np.arange(n), cnt] * member).sum(axis=1) + (budget - cnt.sum(axis=1)) * lam
