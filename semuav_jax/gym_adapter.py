@@ -6,39 +6,51 @@ Importing this module registers it with Gymnasium as ``"SemUAV-v0"``, so
 
 from __future__ import annotations
 
+from functools import partial
+from typing import ClassVar
+
 import gymnasium
 import jax
 import numpy as np
 
+from semuav_jax.actions import ACTION_MODES
 from semuav_jax.env import ENV_ID, SemUAVEnv, make
 from semuav_jax.metrics import episode_metrics
 
 # The jitted functions take the parameters as an argument, so every adapter with the same static
-# parameters (K, M, N, ...) shares one compiled program; this instance only supplies the methods.
-_ENV = SemUAVEnv()
+# parameters (K, M, N, ...) and action mode shares one compiled program; these instances only
+# supply the methods.
+_ENVS = {mode: SemUAVEnv(actions=mode) for mode in ACTION_MODES}
 
 
 @jax.jit
 def _reset(key, params):
     key, k = jax.random.split(key)
-    obs, state = _ENV.reset_env(k, params)
+    obs, state = _ENVS["table"].reset_env(k, params)
     return key, obs, state
 
 
-@jax.jit
-def _step(key, state, action, params):
+@partial(jax.jit, static_argnames="mode")
+def _step(key, state, action, params, mode="table"):
     key, k = jax.random.split(key)
     k_step, _ = jax.random.split(k)  # the key gymnax's ``Environment.step(k, ...)`` steps with
-    obs, state, reward, terminated, info = _ENV.step_env(k_step, state, action, params)
+    obs, state, reward, terminated, info = _ENVS[mode].step_env(k_step, state, action, params)
     return key, obs, state, reward, terminated, info
 
 
 _metrics = jax.jit(episode_metrics)
 
 
+def gym_spaces(env: SemUAVEnv, params) -> tuple[gymnasium.spaces.Box, gymnasium.spaces.Discrete]:
+    """Gymnasium's observation ``Box`` (float32, eq. 5.1) and ``Discrete`` action space of one env."""
+    space = env.observation_space(params)
+    low, high = np.asarray(space.low, np.float32), np.asarray(space.high, np.float32)
+    return gymnasium.spaces.Box(low, high, space.shape, np.float32), gymnasium.spaces.Discrete(env.num_actions)
+
+
 class SemUAVGymEnv(gymnasium.Env):
     """One SemUAV environment with Gymnasium's API: NumPy float32 observations (eq. 5.1),
-    ``Discrete`` actions (eq. 6.1), no auto-reset.
+    ``Discrete`` actions (``actions="table"``: eq. 6.1; ``"waypoint"``: eq. 6.2), no auto-reset.
 
     ``reset(seed=s)`` sets the JAX key ``jax.random.key(s)`` (without a seed, the first reset draws
     one from ``np_random``, later ones continue the key chain); each reset and step splits one
@@ -50,17 +62,14 @@ class SemUAVGymEnv(gymnasium.Env):
     No rendering: ``render_mode`` must be None.
     """
 
-    metadata = {"render_modes": []}
+    metadata: ClassVar[dict] = {"render_modes": []}
 
-    def __init__(self, render_mode: str | None = None, **params):
+    def __init__(self, render_mode: str | None = None, actions: str = "table", **params):
         if render_mode is not None:
             raise ValueError(f"SemUAVGymEnv does not render; render_mode must be None, got {render_mode!r}")
-        env, self.env_params = make(ENV_ID, **params)
-        space = env.observation_space(self.env_params)
-        self.observation_space = gymnasium.spaces.Box(
-            np.asarray(space.low, np.float32), np.asarray(space.high, np.float32), space.shape, np.float32
-        )
-        self.action_space = gymnasium.spaces.Discrete(env.num_actions)
+        env, self.env_params = make(ENV_ID, actions=actions, **params)
+        self.actions = actions
+        self.observation_space, self.action_space = gym_spaces(env, self.env_params)
         self.env_state = None
         self._key = None
 
@@ -79,7 +88,7 @@ class SemUAVGymEnv(gymnasium.Env):
         if not self.action_space.contains(action):
             raise ValueError(f"action must be an integer in [0, {self.action_space.n - 1}], got {action!r}")
         self._key, obs, self.env_state, reward, terminated, info = _step(
-            self._key, self.env_state, np.int32(action), self.env_params
+            self._key, self.env_state, np.int32(action), self.env_params, self.actions
         )
         obs, reward, terminated, info = jax.device_get((obs, reward, terminated, info))
         info = {k: v.item() for k, v in info.items()}
@@ -89,4 +98,5 @@ class SemUAVGymEnv(gymnasium.Env):
 
 
 if ENV_ID not in gymnasium.registry:
-    gymnasium.register(id=ENV_ID, entry_point="semuav_jax.gym_adapter:SemUAVGymEnv")
+    gymnasium.register(id=ENV_ID, entry_point="semuav_jax.gym_adapter:SemUAVGymEnv",
+                       vector_entry_point="semuav_jax.gym_vector:SemUAVVectorEnv")

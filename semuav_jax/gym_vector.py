@@ -1,0 +1,137 @@
+"""A Gymnasium ``VectorEnv`` of n SemUAV environments, stepped by one jitted, vmapped call (docs/env_api.md).
+
+``gymnasium.make_vec("SemUAV-v0", num_envs=n, vectorization_mode="vector_entry_point", ...)``
+builds it (``import semuav_jax.gym_adapter`` registers the id); sub-env i is episode for episode
+the ``SemUAVGymEnv`` that Gymnasium's ``SyncVectorEnv`` would hold, at a fraction of the cost.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import ClassVar
+
+import gymnasium
+import jax
+import jax.numpy as jnp
+import numpy as np
+from gymnasium.vector import AutoresetMode
+from gymnasium.vector.utils import batch_space
+
+from semuav_jax.env import ENV_ID, make
+from semuav_jax.gym_adapter import _reset, _step, gym_spaces
+from semuav_jax.metrics import episode_metrics
+
+SEED_LIMIT = 2**32  # jax.random.key takes 32-bit seeds
+
+
+@partial(jax.jit, static_argnames="mode")
+def _vector_step(keys, states, actions, autoreset, params, mode):
+    """Every sub-env's slot (eq. 3.1-3.10) in one call: ``autoreset`` ones reset instead (next-step mode)."""
+
+    def one(key, state, action, reset):
+        k_r, obs_r, s_r = _reset(key, params)
+        k_s, obs_s, s_s, rew, term, info = _step(key, state, action, params, mode)
+        key, obs, state = jax.tree.map(lambda a, b: jnp.where(reset, a, b), (k_r, obs_r, s_r), (k_s, obs_s, s_s))
+        return key, obs, state, jnp.where(reset, 0.0, rew), term & ~reset, info, episode_metrics(s_s, params)
+
+    return jax.vmap(one, (0, 0, 0, 0))(keys, states, actions, autoreset)
+
+
+_vector_reset = jax.jit(jax.vmap(_reset, (0, None)))
+
+
+def _seeds(seed, n: int) -> np.ndarray:
+    """(n,) uint32 seeds: ``seed + i`` for an int (as ``SyncVectorEnv``), or a list of n ints."""
+    s = [seed + i for i in range(n)] if isinstance(seed, (int, np.integer)) else seed
+    if not isinstance(s, (list, tuple)) or len(s) != n or not all(isinstance(x, (int, np.integer)) and 0 <= x < SEED_LIMIT for x in s):
+        raise ValueError(f"seed must be an int in [0, 2**32 - num_envs] or a list of num_envs such ints, got {seed!r}")
+    return np.asarray(s, np.uint32)
+
+
+class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
+    """n SemUAV environments (``actions="table"``: eq. 6.1; ``"waypoint"``: eq. 6.2) with Gymnasium 1.x's
+    ``VectorEnv`` API and next-step autoreset (``AutoresetMode.NEXT_STEP``).
+
+    Each sub-env keeps its own JAX key chain, exactly as ``SemUAVGymEnv``: ``reset(seed=s)`` sets
+    sub-env i's key to ``jax.random.key(s + i)`` (or ``seed[i]`` for a list), ``reset()`` without a
+    seed continues every chain (the first one draws the seeds from ``np_random``). A sub-env whose
+    last step returned ``terminated`` is reset by the next ``step``: its action is ignored, it
+    returns the new episode's first observation, reward 0 and ``terminated`` False. ``info``
+    holds, as Gymnasium batches infos, ``discount``, ``arrived``, ``delay`` and ``valid`` (with the
+    masks ``_discount``, ... False for the sub-envs reset in that step) and, for sub-envs whose
+    episode ended, the metrics of eq. 8.1 (``mean_psnr``, ..., masks ``_mean_psnr``, ...).
+    ``truncated`` is always False (t = K is a true terminal, docs/env_api.md).
+    """
+
+    metadata: ClassVar[dict] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"], "render_fps": 10}
+
+    def __init__(self, num_envs: int = 1, actions: str = "table", render_mode: str | None = None, **params):
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
+        env, self.env_params = make(ENV_ID, actions=actions, **params)
+        self.num_envs, self.actions, self.render_mode = int(num_envs), actions, render_mode
+        self.single_observation_space, self.single_action_space = gym_spaces(env, self.env_params)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.state = None  # the batched EnvState, leading axis num_envs
+        self._keys = None
+        self._autoreset = np.zeros(self.num_envs, bool)
+        self._trails = None  # rgb_array only: each sub-env's positions since its reset
+
+    def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
+        seeds = None if seed is None else _seeds(seed, self.num_envs)
+        super().reset(seed=None if seeds is None else int(seeds[0]))
+        if seeds is not None:
+            self._keys = jax.vmap(jax.random.key)(seeds)
+        elif self._keys is None:
+            self._keys = jax.vmap(jax.random.key)(_seeds(int(self.np_random.integers(2**31)), self.num_envs))
+        self._keys, obs, self.state = _vector_reset(self._keys, self.env_params)
+        self._autoreset = np.zeros(self.num_envs, bool)
+        if self.render_mode is not None:
+            self._trails = [[q] for q in np.asarray(self.state.q)]
+        return np.asarray(obs), {}
+
+    def step(self, actions):
+        if self.state is None:
+            raise RuntimeError("call reset() before step()")
+        actions = self._check_actions(actions)
+        reset = self._autoreset
+        self._keys, obs, self.state, rew, term, info, metrics = _vector_step(
+            self._keys, self.state, actions, reset, self.env_params, self.actions
+        )
+        obs, rew, term, info, metrics = jax.device_get((obs, rew, term, info, metrics))
+        infos = {}  # as Gymnasium's vector envs batch infos: a key only if some sub-env has it
+        for k, v in info.items() if not reset.all() else ():
+            infos |= {k: v, f"_{k}": ~reset}
+        if term.any():
+            for k, v in metrics.items():  # "arrived" and "valid" are already there: updated where ended
+                infos |= {k: np.where(term, v, infos[k])} if k in infos else {k: np.where(term, v, 0 * v), f"_{k}": term}
+        self._autoreset = term
+        if self.render_mode is not None:
+            self._follow(reset)
+        return obs, rew.astype(np.float64), term, np.zeros(self.num_envs, bool), infos
+
+    def _check_actions(self, actions) -> np.ndarray:
+        a = np.asarray(actions)
+        if a.shape != (self.num_envs,) or a.dtype.kind not in "iu":
+            raise ValueError(f"actions must be an integer array of shape ({self.num_envs},), got {a.dtype} {a.shape}")
+        n = self.single_action_space.n
+        if a.size and (a.min() < 0 or a.max() >= n):
+            raise ValueError(f"actions must lie in [0, {n - 1}], got values in [{a.min()}, {a.max()}]")
+        return a.astype(np.int32)
+
+    def _follow(self, reset: np.ndarray):
+        for i, q in enumerate(np.asarray(self.state.q)):
+            self._trails[i] = [q] if reset[i] else self._trails[i] + [q]
+
+    def render(self):
+        """``rgb_array``: one (H, W, 3) uint8 frame per sub-env (``semuav_jax.render``); None otherwise."""
+        if self.render_mode is None or self.state is None:
+            return None
+        from semuav_jax.render import rgb_frame
+
+        states = jax.device_get(self.state)
+        return tuple(rgb_frame(jax.tree.map(lambda x, i=i: x[i], states), self.env_params, np.asarray(self._trails[i]))
+                     for i in range(self.num_envs))
