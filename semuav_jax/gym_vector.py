@@ -24,17 +24,34 @@ from semuav_jax.metrics import episode_metrics
 SEED_LIMIT = 2**32  # jax.random.key takes 32-bit seeds
 
 
-@partial(jax.jit, static_argnames="mode")
-def _vector_step(keys, states, actions, autoreset, params, mode):
-    """Every sub-env's slot (eq. 3.1-3.10) in one call: ``autoreset`` ones reset instead (next-step mode)."""
+@partial(jax.jit, static_argnames=("mode", "same_step"))
+def _vector_step(keys, states, actions, autoreset, params, mode, same_step):
+    """Every sub-env's slot (eq. 3.1-3.10) in one call. Next-step mode: the ``autoreset`` ones reset
+    instead of stepping; same-step mode: the ones that end reset right after their step."""
 
     def one(key, state, action, reset):
-        k_r, obs_r, s_r = _reset(key, params)
         k_s, obs_s, s_s, rew, term, info = _step(key, state, action, params, mode)
-        key, obs, state = jax.tree.map(lambda a, b: jnp.where(reset, a, b), (k_r, obs_r, s_r), (k_s, obs_s, s_s))
-        return key, obs, state, jnp.where(reset, 0.0, rew), term & ~reset, info, episode_metrics(s_s, params)
+        k_r, obs_r, s_r = _reset(k_s if same_step else key, params)
+        pick = term if same_step else reset
+        key, obs, state = jax.tree.map(lambda a, b: jnp.where(pick, a, b), (k_r, obs_r, s_r), (k_s, obs_s, s_s))
+        if not same_step:
+            rew, term = jnp.where(reset, 0.0, rew), term & ~reset
+        return key, obs, state, rew, term, info, episode_metrics(s_s, params), obs_s if same_step else None
 
-    return jax.vmap(one, (0, 0, 0, 0))(keys, states, actions, autoreset)
+    return jax.vmap(one)(keys, states, actions, autoreset)
+
+
+def _batch_info(info: dict, metrics: dict, live: np.ndarray, ended: np.ndarray) -> dict:
+    """Infos as Gymnasium's vector envs batch them: the step's ``info`` for the ``live`` sub-envs and
+    the episode metrics (eq. 8.1) for the ``ended`` ones, each key with its mask ``_key``, a key only
+    if some sub-env has it, 0 where masked out."""
+    out = {}
+    for k, v in info.items() if live.any() else ():
+        out |= {k: np.where(live, v, np.zeros_like(v)), f"_{k}": live}
+    for k, v in metrics.items() if ended.any() else ():  # "arrived" and "valid" already in: updated
+        out |= {k: np.where(ended, v, out[k])} if k in out else {k: np.where(ended, v, np.zeros_like(v)),
+                                                                         f"_{k}": ended}
+    return out
 
 
 _vector_reset = jax.jit(jax.vmap(_reset, (0, None)))
@@ -61,11 +78,18 @@ class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
     masks ``_discount``, ... False for the sub-envs reset in that step) and, for sub-envs whose
     episode ended, the metrics of eq. 8.1 (``mean_psnr``, ..., masks ``_mean_psnr``, ...).
     ``truncated`` is always False (t = K is a true terminal, docs/env_api.md).
+    ``autoreset_mode=AutoresetMode.SAME_STEP`` (what SB3 expects, :mod:`semuav_jax.sb3`) resets a
+    sub-env in the step that ends it and moves that step's observation and info to
+    ``info["final_obs"]`` / ``info["final_info"]``, as Gymnasium's ``SyncVectorEnv`` does.
     """
 
     metadata: ClassVar[dict] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"], "render_fps": 10}
 
-    def __init__(self, num_envs: int = 1, actions: str = "table", render_mode: str | None = None, **params):
+    def __init__(self, num_envs: int = 1, actions: str = "table", render_mode: str | None = None,
+                 autoreset_mode: AutoresetMode = AutoresetMode.NEXT_STEP, **params):
+        if autoreset_mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+            raise ValueError(f"autoreset_mode must be AutoresetMode.NEXT_STEP or SAME_STEP, got {autoreset_mode!r}")
+        self.metadata = self.metadata | {"autoreset_mode": autoreset_mode}
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         if render_mode not in (None, *self.metadata["render_modes"]):
@@ -98,19 +122,24 @@ class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
             raise RuntimeError("call reset() before step()")
         actions = self._check_actions(actions)
         reset = self._autoreset
-        self._keys, obs, self.state, rew, term, info, metrics = _vector_step(
-            self._keys, self.state, actions, reset, self.env_params, self.actions
+        same_step = self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
+        self._keys, obs, self.state, rew, term, info, metrics, final_obs = _vector_step(
+            self._keys, self.state, actions, reset, self.env_params, self.actions, same_step
         )
-        obs, rew, term, info, metrics = jax.device_get((obs, rew, term, info, metrics))
-        infos = {}  # as Gymnasium's vector envs batch infos: a key only if some sub-env has it
-        for k, v in info.items() if not reset.all() else ():
-            infos |= {k: v, f"_{k}": ~reset}
-        if term.any():
-            for k, v in metrics.items():  # "arrived" and "valid" are already there: updated where ended
-                infos |= {k: np.where(term, v, infos[k])} if k in infos else {k: np.where(term, v, 0 * v), f"_{k}": term}
-        self._autoreset = term
+        obs, rew, term, info, metrics, final_obs = jax.device_get((obs, rew, term, info, metrics, final_obs))
+        if same_step:
+            infos = _batch_info(info, metrics, ~term, np.zeros_like(term))
+            if term.any():
+                final = np.full(self.num_envs, None, object)
+                for i in np.flatnonzero(term):
+                    final[i] = final_obs[i]
+                infos |= {"final_obs": final, "_final_obs": term, "final_info": _batch_info(info, metrics, term, term),
+                          "_final_info": term}
+        else:
+            infos = _batch_info(info, metrics, ~reset, term)
+            self._autoreset = term
         if self.render_mode is not None:
-            self._follow(reset)
+            self._follow(term if same_step else reset)
         return obs, rew.astype(np.float64), term, np.zeros(self.num_envs, bool), infos
 
     def _check_actions(self, actions) -> np.ndarray:

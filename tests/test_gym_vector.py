@@ -13,34 +13,44 @@ K = 12  # short episodes: several autoresets within a few dozen steps
 E = 4  # sub-envs (one shape: the tests share compiled programs)
 
 
-def make_pair(curves, n, actions="table", **params):
-    kw = dict(num_envs=n, actions=actions, curves=curves, K=K, **params)
-    return (gymnasium.make_vec("SemUAV-v0", vectorization_mode="vector_entry_point", **kw),
-            gymnasium.make_vec("SemUAV-v0", vectorization_mode="sync", **kw))
+def make_pair(curves, n, actions="table", mode=AutoresetMode.NEXT_STEP):
+    """(ours, SyncVectorEnv over n SemUAVGymEnv). The destination 22 m from q0: some episodes arrive
+    within a few slots, the others run to t = K, so sub-envs end and autoreset at different steps."""
+    kw = {"num_envs": n, "actions": actions, "curves": curves, "K": K, "q_fin": [22.0, 300.0]}
+    return (gymnasium.make_vec("SemUAV-v0", vectorization_mode="vector_entry_point", autoreset_mode=mode, **kw),
+            gymnasium.make_vec("SemUAV-v0", vectorization_mode="sync", vector_kwargs={"autoreset_mode": mode}, **kw))
 
 
 def assert_infos_equal(a: dict, b: dict):
     assert sorted(a) == sorted(b)
     for k, x in a.items():
-        if k.startswith("_") or x.dtype == bool:
+        if isinstance(x, dict):
+            assert_infos_equal(x, b[k])
+        elif x.dtype == object:  # final_obs: an observation where the mask is set, else None
+            assert [o is None for o in x] == [o is None for o in b[k]]
+            for o, o_ref in zip(x, b[k]):
+                np.testing.assert_allclose(o if o is not None else 0.0, o_ref if o_ref is not None else 0.0,
+                                           rtol=1e-5, atol=1e-5)
+        elif k.startswith("_") or x.dtype == bool:
             np.testing.assert_array_equal(x, b[k], err_msg=k)
         else:  # vmap rounds float32 differently from one env at a time: equal up to rounding
             np.testing.assert_allclose(x, b[k], rtol=1e-5, atol=1e-5, err_msg=k)
 
 
-@pytest.mark.parametrize("actions", ["table", "waypoint"])
-def test_vector_episodes_equal_single_envs(curves, actions):
-    """Same seeds, same actions: the vector env's episodes (through next-step autoresets) are those of
-    Gymnasium's SyncVectorEnv over n SemUAVGymEnv."""
+@pytest.mark.parametrize("actions, mode", [("table", AutoresetMode.NEXT_STEP), ("waypoint", AutoresetMode.NEXT_STEP),
+                                           ("table", AutoresetMode.SAME_STEP)])
+def test_vector_episodes_equal_single_envs(curves, actions, mode):
+    """Same seeds, same actions: the vector env's episodes (through autoresets at different steps)
+    are those of Gymnasium's SyncVectorEnv over n SemUAVGymEnv, infos and masks included."""
     n = E
-    vec, sync = make_pair(curves, n, actions)
-    assert isinstance(vec.unwrapped, SemUAVVectorEnv) and vec.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+    vec, sync = make_pair(curves, n, actions, mode)
+    assert isinstance(vec.unwrapped, SemUAVVectorEnv) and vec.metadata["autoreset_mode"] == mode
     assert vec.action_space == sync.action_space and vec.observation_space == sync.observation_space
     obs_v, _ = vec.reset(seed=11)
     obs_s, _ = sync.reset(seed=11)
     np.testing.assert_array_equal(obs_v, obs_s)
     rng = np.random.default_rng(0)
-    ends = 0
+    ends, partial = 0, 0
     for _ in range(3 * K):
         a = rng.integers(0, vec.single_action_space.n, n)
         obs_v, r_v, term_v, trunc_v, info_v = vec.step(a)
@@ -51,7 +61,8 @@ def test_vector_episodes_equal_single_envs(curves, actions):
         np.testing.assert_allclose(r_v, r_s, rtol=1e-5, atol=1e-5)
         assert_infos_equal(info_v, info_s)
         ends += int(term_v.sum())
-    assert ends >= 2 * n  # every sub-env went through at least two autoresets
+        partial += int(0 < term_v.sum() < n)
+    assert ends >= 2 * n and partial >= 2  # autoresets, some of them of only part of the sub-envs
     # a reset without seed continues each sub-env's key chain, as the single env does
     np.testing.assert_allclose(vec.reset()[0], sync.reset()[0], rtol=1e-5, atol=1e-5)
 
@@ -133,3 +144,35 @@ def test_bad_seeds(curves, seed):
     with pytest.raises(ValueError, match="seed must be") as err:
         env.reset(seed=seed)
     assert "\n" not in str(err.value)
+
+
+def test_sb3_vec_env_equals_dummy_vec_env(curves):
+    """SB3's VecEnv API (same-step reset, terminal_observation): the episodes of DummyVecEnv over n
+    SemUAVGymEnv for the same seed."""
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from semuav_jax.gym_adapter import SemUAVGymEnv
+    from semuav_jax.sb3 import SemUAVVecEnv
+
+    kw = {"curves": curves, "K": K, "q_fin": [22.0, 300.0]}
+    ours = SemUAVVecEnv(num_envs=E, **kw)
+    ref = DummyVecEnv([lambda: SemUAVGymEnv(**kw)] * E)
+    for env in (ours, ref):
+        env.seed(5)
+    np.testing.assert_array_equal(ours.reset(), ref.reset())
+    rng = np.random.default_rng(1)
+    ends = 0
+    for _ in range(2 * K):
+        a = rng.integers(0, 9, E)
+        obs, rew, done, infos = ours.step(a)
+        obs_r, rew_r, done_r, infos_r = ref.step(a)
+        np.testing.assert_array_equal(done, done_r)
+        np.testing.assert_allclose(obs, obs_r, rtol=1e-5, atol=1e-5)
+        np.testing.assert_allclose(rew, rew_r, rtol=1e-5, atol=1e-5)
+        for i, r in zip(infos, infos_r):
+            assert sorted(i) == sorted(r)
+            for k, v in i.items():
+                np.testing.assert_allclose(v, r[k], rtol=1e-5, atol=1e-5, err_msg=k)
+        ends += int(done.sum())
+    assert ends >= E and ours.get_attr("actions") == ["table"] * E and ours.env_is_wrapped(object) == [False] * E
