@@ -41,6 +41,12 @@ def _step(key, state, action, params, mode="table"):
 _metrics = jax.jit(episode_metrics)
 
 
+def check_render_mode(render_mode, offered) -> None:
+    """One-line ValueError unless ``render_mode`` is None or one of ``offered``."""
+    if render_mode is not None and render_mode not in offered:
+        raise ValueError(f"render_mode must be None or one of {offered}, got {render_mode!r}")
+
+
 def gym_spaces(env: SemUAVEnv, params) -> tuple[gymnasium.spaces.Box, gymnasium.spaces.Discrete]:
     """Gymnasium's observation ``Box`` (float32, eq. 5.1) and ``Discrete`` action space of one env."""
     space = env.observation_space(params)
@@ -59,16 +65,16 @@ class SemUAVGymEnv(gymnasium.Env):
     included, see :class:`SemUAVEnv`); ``truncated`` is always False. ``info`` holds
     ``discount``, ``arrived`` and ``delay``; the final step adds the episode's metrics
     (``metrics.episode_metrics``, eq. 8.1: ``mean_psnr``, ``coverage``, ``mission_time``, ...).
-    No rendering: ``render_mode`` must be None.
+    ``render_mode="rgb_array"``: ``render()`` returns the picture of :func:`semuav_jax.render.rgb_frame`.
     """
 
-    metadata: ClassVar[dict] = {"render_modes": []}
+    metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": 10}
 
     def __init__(self, render_mode: str | None = None, actions: str = "table", **params):
-        if render_mode is not None:
-            raise ValueError(f"SemUAVGymEnv does not render; render_mode must be None, got {render_mode!r}")
+        check_render_mode(render_mode, self.metadata["render_modes"])
         env, self.env_params = make(ENV_ID, actions=actions, **params)
-        self.actions = actions
+        self.actions, self.render_mode = actions, render_mode
+        self._trail = []  # the UAV's positions since the reset, kept for rendering
         self.observation_space, self.action_space = gym_spaces(env, self.env_params)
         self.env_state = None
         self._key = None
@@ -80,6 +86,7 @@ class SemUAVGymEnv(gymnasium.Env):
         elif self._key is None:
             self._key = jax.random.key(int(self.np_random.integers(2**31)))
         self._key, obs, self.env_state = _reset(self._key, self.env_params)
+        self._trail = [np.asarray(self.env_state.q)] if self.render_mode else []
         return np.array(obs), {}
 
     def step(self, action):
@@ -94,7 +101,17 @@ class SemUAVGymEnv(gymnasium.Env):
         info = {k: v.item() for k, v in info.items()}
         if terminated:
             info |= {k: v.item() for k, v in jax.device_get(_metrics(self.env_state, self.env_params)).items()}
+        if self.render_mode:
+            self._trail.append(np.asarray(self.env_state.q))
         return np.array(obs), float(reward), bool(terminated), False, info
+
+    def render(self):
+        """``rgb_array``: an (H, W, 3) uint8 picture of the episode so far; None without render_mode."""
+        if self.render_mode is None or self.env_state is None:
+            return None
+        from semuav_jax.render import rgb_frame
+
+        return rgb_frame(jax.device_get(self.env_state), self.env_params, np.asarray(self._trail))
 
 
 if ENV_ID not in gymnasium.registry:

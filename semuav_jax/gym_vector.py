@@ -18,7 +18,7 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from semuav_jax.env import ENV_ID, make
-from semuav_jax.gym_adapter import _reset, _step, gym_spaces
+from semuav_jax.gym_adapter import _reset, _step, check_render_mode, gym_spaces
 from semuav_jax.metrics import episode_metrics
 
 SEED_LIMIT = 2**32  # jax.random.key takes 32-bit seeds
@@ -92,8 +92,7 @@ class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
         self.metadata = self.metadata | {"autoreset_mode": autoreset_mode}
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
-        if render_mode not in (None, *self.metadata["render_modes"]):
-            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
+        check_render_mode(render_mode, self.metadata["render_modes"])
         env, self.env_params = make(ENV_ID, actions=actions, **params)
         self.num_envs, self.actions, self.render_mode = int(num_envs), actions, render_mode
         self.single_observation_space, self.single_action_space = gym_spaces(env, self.env_params)
