@@ -23,22 +23,29 @@ from semuav_jax.metrics import episode_metrics
 
 SEED_LIMIT = 2**32  # jax.random.key takes 32-bit seeds
 
+_vector_reset = jax.jit(jax.vmap(_reset, (0, None)))
+
 
 @partial(jax.jit, static_argnames=("mode", "same_step"))
 def _vector_step(keys, states, actions, autoreset, params, mode, same_step):
     """Every sub-env's slot (eq. 3.1-3.10) in one call. Next-step mode: the ``autoreset`` ones reset
-    instead of stepping; same-step mode: the ones that end reset right after their step."""
+    instead of stepping; same-step mode: the ones that end reset right after their step. The resets
+    and the episode metrics (eq. 8.1) are computed only in the steps that need them (``lax.cond``)."""
+    k_s, obs_s, s_s, rew, term, info = jax.vmap(_step, (0, 0, 0, None, None))(keys, states, actions, params, mode)
+    pick = term if same_step else autoreset
 
-    def one(key, state, action, reset):
-        k_s, obs_s, s_s, rew, term, info = _step(key, state, action, params, mode)
-        k_r, obs_r, s_r = _reset(k_s if same_step else key, params)
-        pick = term if same_step else reset
-        key, obs, state = jax.tree.map(lambda a, b: jnp.where(pick, a, b), (k_r, obs_r, s_r), (k_s, obs_s, s_s))
-        if not same_step:
-            rew, term = jnp.where(reset, 0.0, rew), term & ~reset
-        return key, obs, state, rew, term, info, episode_metrics(s_s, params), obs_s if same_step else None
+    def with_resets(_):
+        k_r, obs_r, s_r = _vector_reset(k_s if same_step else keys, params)
+        return jax.tree.map(lambda a, b: jnp.where(pick.reshape(pick.shape + (1,) * (a.ndim - 1)), a, b),
+                            (k_r, obs_r, s_r), (k_s, obs_s, s_s))
 
-    return jax.vmap(one)(keys, states, actions, autoreset)
+    key, obs, state = jax.lax.cond(pick.any(), with_resets, lambda _: (k_s, obs_s, s_s), None)
+    if not same_step:
+        rew, term = jnp.where(autoreset, 0.0, rew), term & ~autoreset
+    metrics = jax.vmap(episode_metrics, (0, None))
+    zeros = jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), jax.eval_shape(metrics, s_s, params))
+    m = jax.lax.cond(term.any(), lambda s: metrics(s, params), lambda s: zeros, s_s)
+    return key, obs, state, rew, term, info, m, obs_s if same_step else None
 
 
 def _batch_info(info: dict, metrics: dict, live: np.ndarray, ended: np.ndarray) -> dict:
@@ -52,9 +59,6 @@ def _batch_info(info: dict, metrics: dict, live: np.ndarray, ended: np.ndarray) 
         out |= {k: np.where(ended, v, out[k])} if k in out else {k: np.where(ended, v, np.zeros_like(v)),
                                                                          f"_{k}": ended}
     return out
-
-
-_vector_reset = jax.jit(jax.vmap(_reset, (0, None)))
 
 
 def _seeds(seed, n: int) -> np.ndarray:

@@ -40,7 +40,7 @@ def draw(ax, params: EnvParams, dev_pos, m, x, trail, t: int, mean_psnr: float, 
     radius = ground_range(params)
     ax.add_patch(Rectangle((0, 0), float(params.Lx), float(params.Ly), fill=False, ls=":", color="0.5"))
     for d, s, tx in zip(dev_pos, share, x):
-        ax.add_patch(Circle(d, radius, color=SHARE_CMAP(SHARE_NORM(s)), alpha=0.18 + 0.22 * tx, lw=0, zorder=1))
+        ax.add_patch(Circle(d, radius, color=SHARE_CMAP(SHARE_NORM(s)), alpha=0.3 + 0.3 * tx, lw=0, zorder=1))
         if tx:  # an active link: the UAV is in range and receiving from this device in slot t
             ax.plot([d[0], trail[-1, 0]], [d[1], trail[-1, 1]], color="C1", lw=0.8, zorder=2)
     ax.scatter(dev_pos[:, 0], dev_pos[:, 1], c=share, cmap=SHARE_CMAP, norm=SHARE_NORM, s=28, marker="s",
