@@ -42,7 +42,7 @@ def test_animate_writes_one_frame_per_stride_and_holds_the_end(fixed, tmp_path):
     out = animate(traces, fixed, tmp_path / "a.gif", fps=10, stride=5, panel=(3.0, 2.0), dpi=50, hold_s=0.25)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.gif"]  # written atomically, no temporary left
     im = Image.open(out)
-    assert im.n_frames == 5 and im.size == (300, 120)  # slots 0, 5, 10, 15 and the end, K
+    assert im.n_frames == 5 and im.size == (300, 130)  # slots 0, 5, 10, 15 and the end, K; 3 x (2 + 0.6) in at 50 dpi
     frames, durations = [], []
     for i in range(im.n_frames):
         im.seek(i)

@@ -54,7 +54,7 @@ def animate(traces: dict[str, dict], params: EnvParams, path, fps: int = 8, stri
     rows = -(-len(paths) // cols)
     frames = []
     for t in tqdm(slots, desc="frames", unit="frame", disable=not progress, dynamic_ncols=True):
-        fig = Figure(figsize=(panel[0] * min(cols, len(paths)), panel[1] * rows + 0.4), dpi=dpi)
+        fig = Figure(figsize=(panel[0] * min(cols, len(paths)), panel[1] * rows + 0.6), dpi=dpi)
         axes = fig.subplots(rows, min(cols, len(paths)), squeeze=False).ravel()
         for ax, (name, p) in zip(axes, paths.items()):
             s = min(t, len(p["q"]) - 1)
@@ -65,7 +65,8 @@ def animate(traces: dict[str, dict], params: EnvParams, path, fps: int = 8, stri
             ax.set_axis_off()
         fig.suptitle(f"paper layout, B = {float(params.B) / 1e3:g} kHz; device colour: share of its image "
                      "received (dark none, yellow all); orange: transmitting", fontsize=8)
-        fig.tight_layout(rect=(0, 0, 1, 0.97))  # room for the suptitle
+        fig.subplots_adjust(left=0.06, right=0.99, bottom=0.05, top=1 - 0.8 / fig.get_figheight(), wspace=0.15,
+                            hspace=0.35)  # room for the titles (equal-aspect axes defeat tight_layout)
         frames.append(Image.fromarray(figure_rgb(fig)).quantize(colors=64, method=Image.Quantize.MEDIANCUT))
     buf = io.BytesIO()
     durations = [round(1000 / fps)] * (len(frames) - 1) + [round(1000 * max(hold_s, 1 / fps))]
