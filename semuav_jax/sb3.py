@@ -46,9 +46,12 @@ class SemUAVVecEnv(VecEnv):
     def step_wait(self):
         obs, rew, term, _, info = self.venv.step(self._actions)
         infos = [{"TimeLimit.truncated": False} for _ in range(self.num_envs)]
-        for i in range(self.num_envs):
-            source = info["final_info"] if term[i] else info
-            infos[i] |= {k: v[i].item() for k, v in source.items() if not k.startswith("_") and source[f"_{k}"][i]}
+        for source, rows in ((info, np.flatnonzero(~term)), (info.get("final_info", {}), np.flatnonzero(term))):
+            # one .tolist() per key, not one .item() per sub-env and key: the loop below is all Python
+            cols = {k: (v.tolist(), source[f"_{k}"]) for k, v in source.items()
+                    if not k.startswith("_") and k not in ("final_obs", "final_info")}
+            for i in rows.tolist():
+                infos[i] |= {k: v[i] for k, (v, mask) in cols.items() if mask[i]}
         for i in np.flatnonzero(term):
             infos[i]["terminal_observation"] = info["final_obs"][i]
         return obs, rew.astype(np.float32), term, infos

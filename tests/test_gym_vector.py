@@ -176,3 +176,30 @@ def test_sb3_vec_env_equals_dummy_vec_env(curves):
                 np.testing.assert_allclose(v, r[k], rtol=1e-5, atol=1e-5, err_msg=k)
         ends += int(done.sum())
     assert ends >= E and ours.get_attr("actions") == ["table"] * E and ours.env_is_wrapped(object) == [False] * E
+
+
+def test_single_adapter_waypoint_actions_follow_the_gymnax_env(curves):
+    """SemUAVGymEnv(actions="waypoint") steps as SemUAVEnv(actions="waypoint") with the same key chain."""
+    import jax
+
+    import semuav_jax
+    from semuav_jax.actions import NUM_WAYPOINT_ACTIONS
+    from semuav_jax.gym_adapter import SemUAVGymEnv
+
+    g = SemUAVGymEnv(actions="waypoint", curves=curves, K=K)
+    env, p = semuav_jax.make("SemUAV-v0", actions="waypoint", curves=curves, K=K)
+    assert g.action_space.n == NUM_WAYPOINT_ACTIONS == 16
+    obs_g, _ = g.reset(seed=3)
+    key, k = jax.random.split(jax.random.key(3))
+    obs_f, s = env.reset(k, p)
+    for a in (0, 4, 7, 15, 2):
+        obs_g, r_g, *_ = g.step(a)
+        key, k = jax.random.split(key)
+        obs_f, s, r_f, *_ = env.step(k, s, a, p)
+        np.testing.assert_array_equal(obs_g, obs_f)
+        assert r_g == float(r_f)
+    for bad in (16, -1, 2.5):
+        with pytest.raises(ValueError, match=r"action must be an integer in \[0, 15\]"):
+            g.step(bad)
+    with pytest.raises(ValueError, match="actions must be one of .*got 'speed'"):
+        SemUAVGymEnv(actions="speed", curves=curves, K=K)
