@@ -159,6 +159,7 @@ def _animate(args) -> int:
     """--animate GIF: seed 0 of the agent, greedy and TSP at their v_b* (the agent folder's eval.json,
     else tuned here on --validation-layouts) and the planner, one episode each on the paper layout."""
     from baselines.report import tune
+
     from semuav_jax.agents.ddqn import q_network
     from semuav_jax.agents.runs import load_run, shipped_folder
     from semuav_jax.agents.scenarios import scenario_params
