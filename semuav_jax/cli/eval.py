@@ -159,12 +159,15 @@ def _animate(args) -> int:
     """--animate GIF: seed 0 of the agent, greedy and TSP at their v_b* (the agent folder's eval.json,
     else tuned here on --validation-layouts) and the planner, one episode each on the paper layout."""
     from baselines.report import tune
-
     from semuav_jax.agents.ddqn import q_network
     from semuav_jax.agents.runs import load_run, shipped_folder
     from semuav_jax.agents.scenarios import scenario_params
     from semuav_jax.curves import load_curves
-    from semuav_jax.experiments.animation import animate, paper_layout_traces, shipped_tuned_speeds
+    from semuav_jax.experiments.animation import (
+        animate,
+        paper_layout_traces,
+        shipped_tuned_speeds,
+    )
     from semuav_jax.experiments.fig2 import PANEL_B
     from semuav_jax.io import check_writable_folder
 
