@@ -6,39 +6,57 @@ Importing this module registers it with Gymnasium as ``"SemUAV-v0"``, so
 
 from __future__ import annotations
 
+from functools import partial
+from typing import ClassVar
+
 import gymnasium
 import jax
 import numpy as np
 
+from semuav_jax.actions import ACTION_MODES
 from semuav_jax.env import ENV_ID, SemUAVEnv, make
 from semuav_jax.metrics import episode_metrics
 
 # The jitted functions take the parameters as an argument, so every adapter with the same static
-# parameters (K, M, N, ...) shares one compiled program; this instance only supplies the methods.
-_ENV = SemUAVEnv()
+# parameters (K, M, N, ...) and action mode shares one compiled program; these instances only
+# supply the methods.
+_ENVS = {mode: SemUAVEnv(actions=mode) for mode in ACTION_MODES}
 
 
 @jax.jit
 def _reset(key, params):
     key, k = jax.random.split(key)
-    obs, state = _ENV.reset_env(k, params)
+    obs, state = _ENVS["table"].reset_env(k, params)
     return key, obs, state
 
 
-@jax.jit
-def _step(key, state, action, params):
+@partial(jax.jit, static_argnames="mode")
+def _step(key, state, action, params, mode="table"):
     key, k = jax.random.split(key)
     k_step, _ = jax.random.split(k)  # the key gymnax's ``Environment.step(k, ...)`` steps with
-    obs, state, reward, terminated, info = _ENV.step_env(k_step, state, action, params)
+    obs, state, reward, terminated, info = _ENVS[mode].step_env(k_step, state, action, params)
     return key, obs, state, reward, terminated, info
 
 
 _metrics = jax.jit(episode_metrics)
 
 
+def check_render_mode(render_mode, offered) -> None:
+    """One-line ValueError unless ``render_mode`` is None or one of ``offered``."""
+    if render_mode is not None and render_mode not in offered:
+        raise ValueError(f"render_mode must be None or one of {offered}, got {render_mode!r}")
+
+
+def gym_spaces(env: SemUAVEnv, params) -> tuple[gymnasium.spaces.Box, gymnasium.spaces.Discrete]:
+    """Gymnasium's observation ``Box`` (float32, eq. 5.1) and ``Discrete`` action space of one env."""
+    space = env.observation_space(params)
+    low, high = np.asarray(space.low, np.float32), np.asarray(space.high, np.float32)
+    return gymnasium.spaces.Box(low, high, space.shape, np.float32), gymnasium.spaces.Discrete(env.num_actions)
+
+
 class SemUAVGymEnv(gymnasium.Env):
     """One SemUAV environment with Gymnasium's API: NumPy float32 observations (eq. 5.1),
-    ``Discrete`` actions (eq. 6.1), no auto-reset.
+    ``Discrete`` actions (``actions="table"``: eq. 6.1; ``"waypoint"``: eq. 6.2), no auto-reset.
 
     ``reset(seed=s)`` sets the JAX key ``jax.random.key(s)`` (without a seed, the first reset draws
     one from ``np_random``, later ones continue the key chain); each reset and step splits one
@@ -47,20 +65,17 @@ class SemUAVGymEnv(gymnasium.Env):
     included, see :class:`SemUAVEnv`); ``truncated`` is always False. ``info`` holds
     ``discount``, ``arrived`` and ``delay``; the final step adds the episode's metrics
     (``metrics.episode_metrics``, eq. 8.1: ``mean_psnr``, ``coverage``, ``mission_time``, ...).
-    No rendering: ``render_mode`` must be None.
+    ``render_mode="rgb_array"``: ``render()`` returns the picture of :func:`semuav_jax.render.rgb_frame`.
     """
 
-    metadata = {"render_modes": []}
+    metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": 10}
 
-    def __init__(self, render_mode: str | None = None, **params):
-        if render_mode is not None:
-            raise ValueError(f"SemUAVGymEnv does not render; render_mode must be None, got {render_mode!r}")
-        env, self.env_params = make(ENV_ID, **params)
-        space = env.observation_space(self.env_params)
-        self.observation_space = gymnasium.spaces.Box(
-            np.asarray(space.low, np.float32), np.asarray(space.high, np.float32), space.shape, np.float32
-        )
-        self.action_space = gymnasium.spaces.Discrete(env.num_actions)
+    def __init__(self, render_mode: str | None = None, actions: str = "table", **params):
+        check_render_mode(render_mode, self.metadata["render_modes"])
+        env, self.env_params = make(ENV_ID, actions=actions, **params)
+        self.actions, self.render_mode = actions, render_mode
+        self._trail = []  # the UAV's positions since the reset, kept for rendering
+        self.observation_space, self.action_space = gym_spaces(env, self.env_params)
         self.env_state = None
         self._key = None
 
@@ -71,6 +86,7 @@ class SemUAVGymEnv(gymnasium.Env):
         elif self._key is None:
             self._key = jax.random.key(int(self.np_random.integers(2**31)))
         self._key, obs, self.env_state = _reset(self._key, self.env_params)
+        self._trail = [np.asarray(self.env_state.q)] if self.render_mode else []
         return np.array(obs), {}
 
     def step(self, action):
@@ -79,14 +95,25 @@ class SemUAVGymEnv(gymnasium.Env):
         if not self.action_space.contains(action):
             raise ValueError(f"action must be an integer in [0, {self.action_space.n - 1}], got {action!r}")
         self._key, obs, self.env_state, reward, terminated, info = _step(
-            self._key, self.env_state, np.int32(action), self.env_params
+            self._key, self.env_state, np.int32(action), self.env_params, self.actions
         )
         obs, reward, terminated, info = jax.device_get((obs, reward, terminated, info))
         info = {k: v.item() for k, v in info.items()}
         if terminated:
             info |= {k: v.item() for k, v in jax.device_get(_metrics(self.env_state, self.env_params)).items()}
+        if self.render_mode:
+            self._trail.append(np.asarray(self.env_state.q))
         return np.array(obs), float(reward), bool(terminated), False, info
+
+    def render(self):
+        """``rgb_array``: an (H, W, 3) uint8 picture of the episode so far; None without render_mode."""
+        if self.render_mode is None or self.env_state is None:
+            return None
+        from semuav_jax.render import rgb_frame
+
+        return rgb_frame(jax.device_get(self.env_state), self.env_params, np.asarray(self._trail))
 
 
 if ENV_ID not in gymnasium.registry:
-    gymnasium.register(id=ENV_ID, entry_point="semuav_jax.gym_adapter:SemUAVGymEnv")
+    gymnasium.register(id=ENV_ID, entry_point="semuav_jax.gym_adapter:SemUAVGymEnv",
+                       vector_entry_point="semuav_jax.gym_vector:SemUAVVectorEnv")

@@ -42,6 +42,9 @@ def parse_args(argv=None):
     p.add_argument("--velocities", type=float, nargs="+", default=None, help=f"m/s (default: {FULL['velocities']})")
     p.add_argument("--workers", type=int, default=2, help="processes for OR-Tools and the planner")
     p.add_argument("--curves", default=None, help="PSNR curves .npz (default: the shipped DeepJSCC curves)")
+    p.add_argument("--animate", metavar="GIF", default=None,
+                   help="only write an animated GIF: the agent (--agent, else the shipped one) and the references "
+                        "flying the paper layout at 25 kHz side by side")
     a = p.parse_args(argv)
     base = QUICK if a.quick else FULL
     a.grid = {"bandwidths": tuple(a.bandwidths or base["bandwidths"]), "velocities": tuple(a.velocities or base["velocities"]),
@@ -57,6 +60,10 @@ def parse_args(argv=None):
         raise UsageError(str(e)) from None
     if a.quick and a.agent:
         raise UsageError("--quick evaluates the shipped agent; drop --agent or --quick")
+    if a.animate is not None:
+        if not a.animate.endswith(".gif"):
+            raise UsageError(f"--animate must name a .gif file, got {a.animate!r}")
+        return a
     out = Path(a.out)
     if (out / "fig2.json").exists() and not a.overwrite:
         raise UsageError(f"{out} already holds results; pass --overwrite to replace them")
@@ -92,6 +99,8 @@ def _main(argv=None) -> int:
     except UsageError as e:
         print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
         return 2
+    if args.animate:
+        return _animate(args)
 
     import jax
     from tqdm import tqdm
@@ -143,6 +152,44 @@ def _main(argv=None) -> int:
     figures.fig2c(r["paths"], fixed.replace(B=fig2.PANEL_B), out / "fig2c.png")
     print(md)
     print(f"wrote {out}/fig2a.png fig2b.png fig2c.png fig2.json fig2.md in {time.time() - t0:.0f} s")
+    return 0
+
+
+def _animate(args) -> int:
+    """--animate GIF: seed 0 of the agent, greedy and TSP at their v_b* (the agent folder's eval.json,
+    else tuned here on --validation-layouts) and the planner, one episode each on the paper layout."""
+    from baselines.report import tune
+    from semuav_jax.agents.ddqn import q_network
+    from semuav_jax.agents.runs import load_run, shipped_folder
+    from semuav_jax.agents.scenarios import scenario_params
+    from semuav_jax.curves import load_curves
+    from semuav_jax.experiments.animation import (
+        animate,
+        paper_layout_traces,
+        shipped_tuned_speeds,
+    )
+    from semuav_jax.experiments.fig2 import PANEL_B
+    from semuav_jax.io import check_writable_folder
+
+    t0 = time.time()
+    try:
+        check_writable_folder(Path(args.animate).parent, "--animate")
+        folder = Path(args.agent) if args.agent else shipped_folder()
+        run, config, nets = load_run(folder)
+        curves = load_curves(args.curves) if args.curves else None
+        kw = {"reward_mode": run.get("reward_mode", "gain"), "B": PANEL_B}
+        fixed = scenario_params("fixed", curves, **kw)
+    except (ValueError, FileNotFoundError, OSError) as e:
+        print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
+        return 2
+    tuned = None if args.curves else shipped_tuned_speeds(folder, PANEL_B)
+    if tuned is None:
+        print(f"tuning v_b* at {PANEL_B / 1e3:g} kHz on {args.grid['validation_layouts']} validation layouts")
+        t = tune(scenario_params("random", curves, **kw), (PANEL_B,), args.grid["validation_layouts"], workers=args.workers)
+        tuned = {n: t[n]["v_star"][0] for n in ("greedy", "tsp")}
+    traces = paper_layout_traces(q_network(fixed, config), nets, config, fixed, tuned)
+    animate(traces, fixed, args.animate, progress=True)
+    print(f"wrote {args.animate} ({Path(args.animate).stat().st_size / 1e6:.2f} MB) in {time.time() - t0:.0f} s")
     return 0
 
 

@@ -1,0 +1,169 @@
+"""A Gymnasium ``VectorEnv`` of n SemUAV environments, stepped by one jitted, vmapped call (docs/env_api.md).
+
+``gymnasium.make_vec("SemUAV-v0", num_envs=n, vectorization_mode="vector_entry_point", ...)``
+builds it (``import semuav_jax.gym_adapter`` registers the id); sub-env i is episode for episode
+the ``SemUAVGymEnv`` that Gymnasium's ``SyncVectorEnv`` would hold, at a fraction of the cost.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import ClassVar
+
+import gymnasium
+import jax
+import jax.numpy as jnp
+import numpy as np
+from gymnasium.vector import AutoresetMode
+from gymnasium.vector.utils import batch_space
+
+from semuav_jax.env import ENV_ID, make
+from semuav_jax.gym_adapter import _reset, _step, check_render_mode, gym_spaces
+from semuav_jax.metrics import episode_metrics
+
+SEED_LIMIT = 2**32  # jax.random.key takes 32-bit seeds
+
+_vector_reset = jax.jit(jax.vmap(_reset, (0, None)))
+
+
+@partial(jax.jit, static_argnames=("mode", "same_step"))
+def _vector_step(keys, states, actions, autoreset, params, mode, same_step):
+    """Every sub-env's slot (eq. 3.1-3.10) in one call. Next-step mode: the ``autoreset`` ones reset
+    instead of stepping; same-step mode: the ones that end reset right after their step. The resets
+    and the episode metrics (eq. 8.1) are computed only in the steps that need them (``lax.cond``)."""
+    k_s, obs_s, s_s, rew, term, info = jax.vmap(_step, (0, 0, 0, None, None))(keys, states, actions, params, mode)
+    pick = term if same_step else autoreset
+
+    def with_resets(_):
+        k_r, obs_r, s_r = _vector_reset(k_s if same_step else keys, params)
+        return jax.tree.map(lambda a, b: jnp.where(pick.reshape(pick.shape + (1,) * (a.ndim - 1)), a, b),
+                            (k_r, obs_r, s_r), (k_s, obs_s, s_s))
+
+    key, obs, state = jax.lax.cond(pick.any(), with_resets, lambda _: (k_s, obs_s, s_s), None)
+    if not same_step:
+        rew, term = jnp.where(autoreset, 0.0, rew), term & ~autoreset
+    metrics = jax.vmap(episode_metrics, (0, None))
+    zeros = jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), jax.eval_shape(metrics, s_s, params))
+    m = jax.lax.cond(term.any(), lambda s: metrics(s, params), lambda s: zeros, s_s)
+    return key, obs, state, rew, term, info, m, obs_s if same_step else None
+
+
+def _batch_info(info: dict, metrics: dict, live: np.ndarray, ended: np.ndarray) -> dict:
+    """Infos as Gymnasium's vector envs batch them: the step's ``info`` for the ``live`` sub-envs and
+    the episode metrics (eq. 8.1) for the ``ended`` ones, each key with its mask ``_key``, a key only
+    if some sub-env has it, 0 where masked out."""
+    out = {}
+    for k, v in info.items() if live.any() else ():
+        out |= {k: np.where(live, v, np.zeros_like(v)), f"_{k}": live}
+    for k, v in metrics.items() if ended.any() else ():  # "arrived" and "valid" already in: updated
+        out |= {k: np.where(ended, v, out[k])} if k in out else {k: np.where(ended, v, np.zeros_like(v)),
+                                                                         f"_{k}": ended}
+    return out
+
+
+def _seeds(seed, n: int) -> np.ndarray:
+    """(n,) uint32 seeds: ``seed + i`` for an int (as ``SyncVectorEnv``), or a list of n ints."""
+    s = [seed + i for i in range(n)] if isinstance(seed, (int, np.integer)) else seed
+    if not isinstance(s, (list, tuple)) or len(s) != n or not all(isinstance(x, (int, np.integer)) and 0 <= x < SEED_LIMIT for x in s):
+        raise ValueError(f"seed must be an int in [0, 2**32 - num_envs] or a list of num_envs such ints, got {seed!r}")
+    return np.asarray(s, np.uint32)
+
+
+class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
+    """n SemUAV environments (``actions="table"``: eq. 6.1; ``"waypoint"``: eq. 6.2) with Gymnasium 1.x's
+    ``VectorEnv`` API and next-step autoreset (``AutoresetMode.NEXT_STEP``).
+
+    Each sub-env keeps its own JAX key chain, exactly as ``SemUAVGymEnv``: ``reset(seed=s)`` sets
+    sub-env i's key to ``jax.random.key(s + i)`` (or ``seed[i]`` for a list), ``reset()`` without a
+    seed continues every chain (the first one draws the seeds from ``np_random``). A sub-env whose
+    last step returned ``terminated`` is reset by the next ``step``: its action is ignored, it
+    returns the new episode's first observation, reward 0 and ``terminated`` False. ``info``
+    holds, as Gymnasium batches infos, ``discount``, ``arrived``, ``delay`` and ``valid`` (with the
+    masks ``_discount``, ... False for the sub-envs reset in that step) and, for sub-envs whose
+    episode ended, the metrics of eq. 8.1 (``mean_psnr``, ..., masks ``_mean_psnr``, ...).
+    ``truncated`` is always False (t = K is a true terminal, docs/env_api.md).
+    ``autoreset_mode=AutoresetMode.SAME_STEP`` (what SB3 expects, :mod:`semuav_jax.sb3`) resets a
+    sub-env in the step that ends it and moves that step's observation and info to
+    ``info["final_obs"]`` / ``info["final_info"]``, as Gymnasium's ``SyncVectorEnv`` does.
+    """
+
+    metadata: ClassVar[dict] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"], "render_fps": 10}
+
+    def __init__(self, num_envs: int = 1, actions: str = "table", render_mode: str | None = None,
+                 autoreset_mode: AutoresetMode = AutoresetMode.NEXT_STEP, **params):
+        if autoreset_mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+            raise ValueError(f"autoreset_mode must be AutoresetMode.NEXT_STEP or SAME_STEP, got {autoreset_mode!r}")
+        self.metadata = self.metadata | {"autoreset_mode": autoreset_mode}
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        check_render_mode(render_mode, self.metadata["render_modes"])
+        env, self.env_params = make(ENV_ID, actions=actions, **params)
+        self.num_envs, self.actions, self.render_mode = int(num_envs), actions, render_mode
+        self.single_observation_space, self.single_action_space = gym_spaces(env, self.env_params)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.state = None  # the batched EnvState, leading axis num_envs
+        self._keys = None
+        self._autoreset = np.zeros(self.num_envs, bool)
+        self._trails = None  # rgb_array only: each sub-env's positions since its reset
+
+    def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
+        seeds = None if seed is None else _seeds(seed, self.num_envs)
+        super().reset(seed=None if seeds is None else int(seeds[0]))
+        if seeds is not None:
+            self._keys = jax.vmap(jax.random.key)(seeds)
+        elif self._keys is None:
+            self._keys = jax.vmap(jax.random.key)(_seeds(int(self.np_random.integers(2**31)), self.num_envs))
+        self._keys, obs, self.state = _vector_reset(self._keys, self.env_params)
+        self._autoreset = np.zeros(self.num_envs, bool)
+        if self.render_mode is not None:
+            self._trails = [[q] for q in np.asarray(self.state.q)]
+        return np.asarray(obs), {}
+
+    def step(self, actions):
+        if self.state is None:
+            raise RuntimeError("call reset() before step()")
+        actions = self._check_actions(actions)
+        reset = self._autoreset
+        same_step = self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
+        self._keys, obs, self.state, rew, term, info, metrics, final_obs = _vector_step(
+            self._keys, self.state, actions, reset, self.env_params, self.actions, same_step
+        )
+        obs, rew, term, info, metrics, final_obs = jax.device_get((obs, rew, term, info, metrics, final_obs))
+        if same_step:
+            infos = _batch_info(info, metrics, ~term, np.zeros_like(term))
+            if term.any():
+                final = np.full(self.num_envs, None, object)
+                for i in np.flatnonzero(term):
+                    final[i] = final_obs[i]
+                infos |= {"final_obs": final, "_final_obs": term, "final_info": _batch_info(info, metrics, term, term),
+                          "_final_info": term}
+        else:
+            infos = _batch_info(info, metrics, ~reset, term)
+            self._autoreset = term
+        if self.render_mode is not None:
+            self._follow(term if same_step else reset)
+        return obs, rew.astype(np.float64), term, np.zeros(self.num_envs, bool), infos
+
+    def _check_actions(self, actions) -> np.ndarray:
+        a = np.asarray(actions)
+        if a.shape != (self.num_envs,) or a.dtype.kind not in "iu":
+            raise ValueError(f"actions must be an integer array of shape ({self.num_envs},), got {a.dtype} {a.shape}")
+        n = self.single_action_space.n
+        if a.size and (a.min() < 0 or a.max() >= n):
+            raise ValueError(f"actions must lie in [0, {n - 1}], got values in [{a.min()}, {a.max()}]")
+        return a.astype(np.int32)
+
+    def _follow(self, reset: np.ndarray):
+        for i, q in enumerate(np.asarray(self.state.q)):
+            self._trails[i] = [q] if reset[i] else self._trails[i] + [q]
+
+    def render(self):
+        """``rgb_array``: one (H, W, 3) uint8 frame per sub-env (``semuav_jax.render``); None otherwise."""
+        if self.render_mode is None or self.state is None:
+            return None
+        from semuav_jax.render import rgb_frame
+
+        states = jax.device_get(self.state)
+        return tuple(rgb_frame(jax.tree.map(lambda x, i=i: x[i], states), self.env_params, np.asarray(self._trails[i]))
+                     for i in range(self.num_envs))
