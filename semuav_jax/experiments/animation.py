@@ -21,7 +21,8 @@ from semuav_jax.io import atomic_write
 from semuav_jax.params import EnvParams
 from semuav_jax.render import draw, figure_rgb, view_limits
 
-REFERENCES = {"greedy v_b*": "greedy", "tsp v_b*": "TSP", "planner": "offline planner"}  # traced_runs' names
+REFERENCES = {"greedy v_b*": "greedy", "tsp v_b*": "TSP", "tsp-dwell": "TSP-dwell", "planner": "open-loop planner",
+              "exact planner": "exact planner"}  # traced_runs' names (TSP-dwell when its knobs are given)
 
 
 def episode_path(trace: dict, params: EnvParams) -> dict:
@@ -102,6 +103,6 @@ def paper_layout_traces(network, nets, config, fixed: EnvParams, tuned: dict) ->
 
     runs = traced_runs(network, jax.tree.map(lambda x: x[:1], nets), config, episode_keys(TEST_SEED, 1), fixed,
                        tuned, workers=1)
-    labels = {"agent seed 0": "DDQN (ours)"} | {k: v + (f", {tuned[k.split()[0]]:g} m/s" if k != "planner" else "")
-                                                   for k, v in REFERENCES.items()}
+    labels = {"agent seed 0": "DDQN (ours)"} | {k: v + (f", {tuned[k.split()[0]]:g} m/s" if "v_b*" in k else "")
+                                                   for k, v in REFERENCES.items() if k in runs}
     return {labels[k]: jax.tree.map(lambda x: np.asarray(x)[0], runs[k][1]) for k in labels}

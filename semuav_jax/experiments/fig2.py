@@ -92,7 +92,7 @@ def traced_runs(network, nets, config: DDQNConfig, keys, params: EnvParams, tune
         for label, v in ((f"{name} {DEFAULT_V_B:g}", DEFAULT_V_B), (f"{name} v_b*", tuned_speeds[name])):
             states = jax.vmap(init_state, (None, 0))(jnp.float32(v), jnp.asarray(ranks[name]))
             runs[label] = rollout(POLICIES[name], keys, params, states, trace=True)
-    for name, policy in DWELL_POLICIES.items():
+    for name, policy in ((n, f) for n, f in DWELL_POLICIES.items() if n in tuned_speeds):
         states = jax.vmap(init_dwell, (None, None, None, 0))(*tuned_speeds[name], jnp.asarray(ranks["tsp"]))
         runs[name] = rollout(policy, keys, params, states, trace=True)
     plan = make_plans(keys, params, workers=workers) if plan is None else plan
