@@ -24,7 +24,7 @@ _state = {"active": False}
 
 
 class DistributedError(Exception):
-    """A bad distributed option or a failed start: one line, exit code 2."""
+    """A bad distributed option, or a start the runtime refused: one line, exit code 2."""
 
 
 def add_options(parser) -> None:
@@ -72,15 +72,23 @@ def initialize(args) -> None:
         clear_backends()
     jax.config.update("jax_cpu_collectives_implementation", "gloo")
     t = int(args.dist_timeout)
-    kw = {"initialization_timeout": t, "heartbeat_timeout_seconds": t, "shutdown_timeout_seconds": t}
+    # the runtime's own limits are a backstop at twice ours: when it gives up it aborts with a long log
+    kw = {"initialization_timeout": 2 * t, "heartbeat_timeout_seconds": t, "shutdown_timeout_seconds": t}
     if args.coordinator != "auto":
         kw.update(coordinator_address=args.coordinator, num_processes=args.num_processes, process_id=args.process_id,
                   coordinator_bind_address=args.coordinator)
+    where = args.coordinator if args.coordinator != "auto" else "the cluster's coordinator"
+    timer = threading.Timer(args.dist_timeout, abort, (f"could not start the distributed run at {where}: not every "
+                                                       f"process joined within {args.dist_timeout:g} s",))
+    timer.daemon = True
+    timer.start()
     try:
         jax.distributed.initialize(**kw)
-        jax.devices()  # the global topology exchange: also bounded by the peers' arrival
+        jax.devices()  # the global topology exchange: also waits for every process
     except Exception as e:  # noqa: BLE001  the runtime raises several types (RuntimeError, XlaRuntimeError, ...)
-        raise DistributedError(f"could not start the distributed run at {args.coordinator}: {_first_line(e)}") from None
+        raise DistributedError(f"could not start the distributed run at {where}: {_first_line(e)}") from None
+    finally:
+        timer.cancel()
     _state.update(active=True, timeout=args.dist_timeout)
     threading.Thread(target=_watch, args=(args.dist_timeout,), daemon=True).start()
 
@@ -96,11 +104,11 @@ def is_main() -> bool:
     return jax.process_index() == 0
 
 
-def abort(message: str) -> None:
-    """End this process now: one line on stderr, exit code 1 (the peers notice within the timeout)."""
+def abort(message: str, code: int = 1) -> None:
+    """End this process now: one line on stderr, exit ``code`` (the peers notice within the timeout)."""
     sys.stdout.flush()
     print(f"{Path(sys.argv[0]).name}: error: {message}", file=sys.stderr, flush=True)
-    os._exit(1)
+    os._exit(code)
 
 
 def guarded(run, argv):
@@ -108,6 +116,10 @@ def guarded(run, argv):
     this process) ends the process at once with one line, since its peers cannot go on without it."""
     try:
         return run(argv)
+    except KeyboardInterrupt:
+        if not _state["active"]:
+            raise
+        abort(f"process {_process_id()} interrupted; the files saved so far are consistent", 130)
     except Exception as e:
         if not _state["active"]:
             raise

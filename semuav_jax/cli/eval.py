@@ -16,6 +16,7 @@ import sys
 import time
 from pathlib import Path
 
+from semuav_jax import distributed
 from semuav_jax.cli import interruptible
 
 
@@ -42,6 +43,7 @@ def parse_args(argv=None):
     p.add_argument("--velocities", type=float, nargs="+", default=None, help=f"m/s (default: {FULL['velocities']})")
     p.add_argument("--workers", type=int, default=2, help="processes for OR-Tools and the planner")
     p.add_argument("--curves", default=None, help="PSNR curves .npz (default: the shipped DeepJSCC curves)")
+    distributed.add_options(p)
     a = p.parse_args(argv)
     base = QUICK if a.quick else FULL
     a.grid = {"bandwidths": tuple(a.bandwidths or base["bandwidths"]), "velocities": tuple(a.velocities or base["velocities"]),
@@ -67,29 +69,32 @@ def agent_folder(args, out: Path) -> Path:
     """The run folder of the agent: the shipped one, --agent, or OUT/agent trained (or resumed) here."""
     from semuav_jax.cli import train
     from semuav_jax.agents.runs import CKPT_FILE, finished, shipped_folder
+    from semuav_jax.sharding import agree
 
     if args.quick:
         return shipped_folder()
     if args.agent:
         return Path(args.agent)
     folder = out / "agent"
-    if not finished(folder):
-        resume = ["--resume"] if (folder / CKPT_FILE).is_file() else []
+    if not agree(finished(folder)):  # every process decides alike (a shared folder)
+        resume = ["--resume"] if agree((folder / CKPT_FILE).is_file()) else []
         cmd = ["--out", str(folder), "--eval-episodes", "0", *resume] + (["--curves", args.curves] if args.curves else [])
         print(("resuming" if resume else "training") + f" the default agent in {folder} (python train.py {' '.join(cmd)})")
         if train.main(cmd) != 0:
             raise UsageError(f"training into {folder} failed")
+        distributed.barrier("agent trained")  # process 0 wrote it: the others read it next
     return folder
 
 
 def main(argv=None) -> int:
-    return interruptible(_main, argv, "the same command continues at the step it stopped in")
+    return interruptible(lambda a: distributed.guarded(_main, a), argv, "the same command continues at the step it stopped in")
 
 
 def _main(argv=None) -> int:
     try:
         args = parse_args(argv)
-    except UsageError as e:
+        distributed.initialize(args)
+    except (UsageError, distributed.DistributedError) as e:
         print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
         return 2
 
@@ -109,8 +114,9 @@ def _main(argv=None) -> int:
     t0 = time.time()
     try:
         check_writable_folder(out)
-        out.mkdir(parents=True, exist_ok=True)
-        remove_stale_temps(out, OUT_FILES)
+        if distributed.is_main():
+            out.mkdir(parents=True, exist_ok=True)
+            remove_stale_temps(out, OUT_FILES)
         folder = agent_folder(args, out)
         run, config, nets = load_run(folder)
         curves = load_curves(args.curves) if args.curves else None
@@ -135,6 +141,8 @@ def _main(argv=None) -> int:
              devices=jax.device_count(), grid={k: list(v) if isinstance(v, tuple) else v for k, v in args.grid.items()},
              **provenance(params))
     r["paths"] = {k: {m: (v.tolist() if hasattr(v, "tolist") else v) for m, v in p.items()} for k, p in r["paths"].items()}
+    if not distributed.is_main():  # process 0 alone writes the results
+        return 0
     atomic_write(out / "fig2.json", json.dumps(r, indent=2).encode())
     md = fig2.markdown(r)
     atomic_write(out / "fig2.md", (md + "\n").encode())

@@ -16,6 +16,7 @@ import numpy as np
 from baselines.report import BANDWIDTHS, flights, summary, tune
 from semuav_jax.agents.ddqn import DDQNConfig, q_network
 from semuav_jax.agents.evaluate import seed_metrics
+from semuav_jax.distributed import is_main
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams
 from semuav_jax.stats import mean_ci, wilson_interval
@@ -116,8 +117,9 @@ def evaluate_run(folder, episodes: int = 1000, validation_episodes: int = 500, w
     bandwidths = BANDWIDTHS if config.bandwidth_range is not None else (run["bandwidth"],)
     r = compare(network, nets, config, params, bandwidths, episodes, validation_episodes, workers, log=log)
     r.update(agent_command=run.get("command"), **(extra or {}), **provenance(params))
-    atomic_write(Path(folder) / EVAL_FILE, json.dumps(r, indent=2).encode())
-    atomic_write(Path(folder) / EVAL_MD, (markdown(r) + "\n").encode())
+    if is_main():  # of several processes, process 0 writes
+        atomic_write(Path(folder) / EVAL_FILE, json.dumps(r, indent=2).encode())
+        atomic_write(Path(folder) / EVAL_MD, (markdown(r) + "\n").encode())
     return r
 
 
