@@ -20,9 +20,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from multiprocess import environment, start, wait_all  # noqa: E402
+from multiprocess import environment, start, wait_all
 
-from semuav_jax.io import atomic_write  # noqa: E402
+from semuav_jax.io import atomic_write
 
 
 def items(out: Path) -> dict:
@@ -48,7 +48,7 @@ def main():
             t0 = time.perf_counter()
             if processes == 1:
                 p = subprocess.run([sys.executable, *cmd, str(out)], cwd=ROOT, env=environment(devices),
-                                   capture_output=True, text=True)
+                                   capture_output=True, text=True, check=False)
                 codes = [p.returncode]
             else:
                 codes = wait_all(start([*cmd, str(out)], processes, timeout_s=60, devices=devices), 3600)
@@ -61,7 +61,7 @@ def main():
     print(f"{'run':<28} {'wall s':>8} {'speed-up':>9} {'same items':>11}")
     for r in rows:
         r["speedup"] = base / r["wall_s"]
-        print(f"{r['run']:<28} {r['wall_s']:>8.1f} {r['speedup']:>9.2f} {str(r['same_items_as_first']):>11}")
+        print(f"{r['run']:<28} {r['wall_s']:>8.1f} {r['speedup']:>9.2f} {r['same_items_as_first']!s:>11}")
     n_items = len(grid["params"]["B"]) * len(grid["policies"]) * args.seeds
     print(f"{n_items} items of {args.episodes} episodes; os.cpu_count() = {os.cpu_count()}")
     atomic_write(args.out, json.dumps({"grid": grid, "cpu_count": os.cpu_count(), "rows": rows}, indent=2).encode())

@@ -78,8 +78,8 @@ def initialize(args) -> None:
         kw.update(coordinator_address=args.coordinator, num_processes=args.num_processes, process_id=args.process_id,
                   coordinator_bind_address=args.coordinator)
     where = args.coordinator if args.coordinator != "auto" else "the cluster's coordinator"
-    timer = threading.Timer(args.dist_timeout, abort, (f"could not start the distributed run at {where}: not every "
-                                                       f"process joined within {args.dist_timeout:g} s",))
+    message = f"could not start the distributed run at {where}: not every process joined within {args.dist_timeout:g} s"
+    timer = threading.Timer(args.dist_timeout, abort, (message,))
     timer.daemon = True
     timer.start()
     try:
@@ -113,9 +113,10 @@ def abort(message: str, code: int = 1) -> None:
 
 def guarded(run, argv):
     """``run(argv)``; in a distributed run an exception (a lost peer's collective fails, or any error in
-    this process) ends the process at once with one line, since its peers cannot go on without it."""
+    this process) or a failed exit code ends the process at once (one line), since its peers cannot go
+    on without it."""
     try:
-        return run(argv)
+        code = run(argv)
     except KeyboardInterrupt:
         if not _state["active"]:
             raise
@@ -124,6 +125,11 @@ def guarded(run, argv):
         if not _state["active"]:
             raise
         abort(f"distributed run stopped on process {_process_id()}: {_first_line(e)}")
+    if _state["active"] and code not in (0, None):  # the command said why: its peers must not wait at exit
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
 
 
 def barrier(name: str) -> None:

@@ -30,12 +30,12 @@ def start(args: list[str], processes: int, timeout_s: float = 20, devices: int =
     port = free_port()
     procs = []
     for i in range(processes):
-        out = open(logs / f"p{i}.out", "wb") if logs else subprocess.DEVNULL
-        err = open(logs / f"p{i}.err", "wb") if logs else subprocess.DEVNULL
-        procs.append(subprocess.Popen(
-            [sys.executable, *args, "--coordinator", f"127.0.0.1:{port}", "--num-processes", str(processes),
-             "--process-id", str(i), "--dist-timeout", str(timeout_s)],
-            cwd=ROOT, env=environment(devices), stdout=out, stderr=err))
+        with (open(logs / f"p{i}.out" if logs else os.devnull, "wb") as out,
+              open(logs / f"p{i}.err" if logs else os.devnull, "wb") as err):  # the child keeps its own copies
+            procs.append(subprocess.Popen(
+                [sys.executable, *args, "--coordinator", f"127.0.0.1:{port}", "--num-processes", str(processes),
+                 "--process-id", str(i), "--dist-timeout", str(timeout_s)],
+                cwd=ROOT, env=environment(devices), stdout=out, stderr=err))
     return procs
 
 
@@ -76,4 +76,4 @@ def run(args: list[str], processes: int, limit_s: float = 300, **kw):
 def single(args: list[str], devices: int = 1, limit_s: float = 300) -> subprocess.CompletedProcess:
     """``python ARGS`` in one process with ``devices`` host devices."""
     return subprocess.run([sys.executable, *args], cwd=ROOT, env=environment(devices), capture_output=True, text=True,
-                          timeout=limit_s)
+                          timeout=limit_s, check=False)

@@ -243,7 +243,6 @@ def _main(argv=None) -> int:
 
     from semuav_jax.agents.ddqn import make_train
     from semuav_jax.agents.runs import run_params
-    from semuav_jax.sharding import gather, shard_episodes
 
     out = Path(args.out)
     try:
@@ -265,7 +264,6 @@ def _main(argv=None) -> int:
     keys = jax.random.split(jax.random.PRNGKey(cfg["seed"]), cfg["seeds"])
     init = jax.jit(jax.vmap(trainer.init))
     template = jax.eval_shape(init, keys)
-    seeds = lambda tree: jax.tree.map(lambda x: x[: cfg["seeds"]], gather(tree))  # the padding of shard_episodes dropped
     if args.resume:
         try:
             state = serialization.from_bytes(template, (out / CKPT_FILE).read_bytes())
@@ -288,22 +286,21 @@ def _main(argv=None) -> int:
         state, rows = None, []
 
     t0 = time.time()
-    # the seeds are sharded over every device of every process
-    state = init(shard_episodes(keys)) if state is None else shard_episodes(state)
-    done = int(gather(state.chunk)[0])
+    if state is None:
+        state = init(keys)
+    done = int(np.asarray(state.chunk)[0])
     runs = {}
     bar = tqdm(total=config.num_chunks, initial=done, unit="chunk", desc="training", dynamic_ncols=True)
     for n in segment_lengths(config.num_chunks, cfg["segments"], done)[: args.max_segments]:
         if n not in runs:
             runs[n] = jax.jit(jax.vmap(lambda s, n=n: trainer.run(s, n)))
         state, metrics = runs[n](state)
-        metrics = seeds(metrics)
+        metrics = jax.tree.map(np.asarray, metrics)
         for s in range(cfg["seeds"]):
             for c in range(n):
                 rows.append({"seed": s, "chunk": done + c + 1, **{k: int(metrics[k][s, c]) if k in INT_COLUMNS
                                                                  else float(metrics[k][s, c]) for k in METRIC_COLUMNS[2:]}})
         done += n
-        saved = seeds(state)  # a gather: every process takes part
         if not distributed.is_main():
             continue
         text = io.StringIO()
@@ -311,7 +308,7 @@ def _main(argv=None) -> int:
         w.writeheader()
         w.writerows({k: r[k] for k in METRIC_COLUMNS} for r in rows)
         atomic_write(out / METRICS_FILE, text.getvalue().encode())  # before the checkpoint: see resume
-        atomic_write(out / CKPT_FILE, serialization.to_bytes(saved))
+        atomic_write(out / CKPT_FILE, serialization.to_bytes(state))
         plot_curves(rows, out / CURVE_FILE)
         bar.set_postfix(psnr=f"{metrics['mean_psnr'][:, -1].mean():.2f}", eps=f"{metrics['epsilon'][0, -1]:.2f}")
         bar.update(done - bar.n)  # the callbacks moved it within the segment
@@ -320,9 +317,8 @@ def _main(argv=None) -> int:
         print(f"stopped at chunk {done} / {config.num_chunks}; continue with --resume --out {out}")
         return 0
     wall = time.time() - t0
-    weights = seeds(state.params)
     if distributed.is_main():
-        atomic_write(out / MODEL_FILE, serialization.to_bytes(weights))
+        atomic_write(out / MODEL_FILE, serialization.to_bytes(state.params))
     distributed.barrier("weights written")  # the evaluation below and eval.py read them in every process
     print(f"training: {config.num_chunks * config.steps_per_chunk * config.num_envs * cfg['seeds']:,} env steps "
           f"in {wall:.0f} s (this session)")

@@ -17,6 +17,7 @@ from baselines.report import BANDWIDTHS, flights, summary, tune
 from semuav_jax.agents.ddqn import DDQNConfig, q_network
 from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.distributed import is_main
+from semuav_jax.experiments.fig2 import shared_plans
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams
 from semuav_jax.stats import mean_ci, wilson_interval
@@ -30,7 +31,8 @@ def compare(network, nets, config: DDQNConfig, params: EnvParams, bandwidths=BAN
     tuned = tune(params, bandwidths, validation_episodes, workers=workers)
     log("v_b* on validation layouts: " + ", ".join(f"{n} {tuned[n]['v_star']}" for n in ("greedy", "tsp")))
     keys = episode_keys(TEST_SEED, episodes)
-    refs = flights(params, keys, tuned, bandwidths, workers)
+    plans = [shared_plans(keys, params.replace(B=b), workers) for b in bandwidths]  # each process plans its share
+    refs = flights(params, keys, tuned, bandwidths, workers, plans=plans)
     unshielded = dataclasses.replace(config, shield_margin=None)
     per_seed = seed_metrics(network, nets, config, keys, params, bandwidths)
     if ablate_shield and config.shield_margin is not None:
