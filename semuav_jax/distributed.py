@@ -107,7 +107,7 @@ def is_main() -> bool:
 def abort(message: str, code: int = 1) -> None:
     """End this process now: one line on stderr, exit ``code`` (the peers notice within the timeout)."""
     sys.stdout.flush()
-    print(f"{Path(sys.argv[0]).name}: error: {message}", file=sys.stderr, flush=True)
+    print(f"\n{Path(sys.argv[0]).name}: error: {message}", file=sys.stderr, flush=True)  # after a progress bar
     os._exit(code)
 
 

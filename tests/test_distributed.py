@@ -153,6 +153,7 @@ def test_a_peer_lost_mid_run_ends_the_other_within_the_timeout(tmp_path, fault):
             os.kill(procs[1].pid, signal.SIGCONT)
         end_all(procs)
     err = (tmp_path / "p0.err").read_text().strip().splitlines()
+    print(f"{fault}: process 0 ended {wall:.1f} s after the fault: {err[-1]}")
     assert code == 1, err[-5:]
     assert wall <= timeout_s
     assert "error:" in err[-1] and ("peer process 1" in err[-1] or "distributed run stopped" in err[-1])

@@ -70,8 +70,9 @@ def seed_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams, ban
     skeys = shard_episodes(keys)
     policy = greedy_policy(network, config)
 
-    def at(net, b):
-        return rollout(policy, skeys, params.replace(B=b), agent_state(net), state_axes=None)[0]
+    def at(net, b, k):  # the keys are an argument: a jit may not close over another process's shards
+        return rollout(policy, k, params.replace(B=b), agent_state(net), state_axes=None)[0]
 
-    out = jax.jit(jax.vmap(jax.vmap(at, (None, 0)), (0, None)))(nets, jnp.asarray(bandwidths, jnp.float32))
+    out = jax.jit(jax.vmap(jax.vmap(at, (None, 0, None)), (0, None, None)))(nets, jnp.asarray(bandwidths, jnp.float32),
+                                                                            skeys)
     return {k: v[..., :E] for k, v in gather(out).items()}
