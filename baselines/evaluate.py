@@ -3,7 +3,8 @@
 ``run`` is the shared path (baselines and the DDQN): E episodes, one compiled program, the
 metrics of MODEL.md section 8. ``baseline_metrics`` is a pure ``(keys, params, v_b, rank) ->
 metrics`` that vmaps over ``params.B`` and ``v_b`` without recompiling; ``sweep`` does exactly
-that for a grid. TSP ranks come from OR-Tools outside jit (``tsp_ranks``).
+that for a grid, its episodes sharded over every device of every process (``semuav_jax.sharding``).
+TSP ranks come from OR-Tools outside jit (``tsp_ranks``), each process solving its share.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from baselines.policies import DEFAULT_V_B, POLICIES, init_state
 from semuav_jax.env import reset_state
 from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import rollout
+from semuav_jax.sharding import gather, shard_episodes, split_hosts
 
 
 def resolve(policy):
@@ -45,8 +47,9 @@ def tsp_ranks(keys, params: EnvParams, time_limit_ms: int = tsp_solver.DEFAULT_T
     if params.layout == "fixed":
         order = tsp_solver.solve_order(pos[0], q0, q_fin, time_limit_ms)
         orders = np.broadcast_to(order, pos.shape[:2])
-    else:
-        orders = tsp_solver.solve_orders(pos, q0, q_fin, time_limit_ms, workers)
+    else:  # each process solves its share of the layouts
+        orders = split_hosts(lambda lo, hi: tsp_solver.solve_orders(pos[lo:hi], q0, q_fin, time_limit_ms, workers),
+                             len(pos))
     return np.argsort(orders, axis=-1).astype(np.int32)
 
 
@@ -115,4 +118,5 @@ def sweep(policy, keys, params: EnvParams, v_b=(DEFAULT_V_B,), B=None, rank=None
         raise ValueError(f"B must be finite and > 0 Hz, got {B[~(np.isfinite(B) & (B > 0))][0]}")
     rank = _ranks(policy, keys, params, rank, **tsp_kwargs)
     B = jnp.asarray(B, jnp.float32)
-    return jax.tree.map(np.asarray, _sweep(resolve(policy), keys, params, v_b, B, rank))
+    skeys, srank = shard_episodes((jnp.asarray(keys), rank))
+    return {k: v[..., : len(keys)] for k, v in gather(_sweep(resolve(policy), skeys, params, v_b, B, srank)).items()}

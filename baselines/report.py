@@ -26,6 +26,7 @@ from baselines.evaluate import run, sweep, tsp_ranks
 from baselines.planner import make_plans, planner
 from baselines.policies import DEFAULT_V_B
 from baselines.travel_bound import flight_account, travel_bound
+from semuav_jax import distributed
 from semuav_jax.io import atomic_write
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import make_params
@@ -182,6 +183,10 @@ def markdown(r: dict) -> str:
 
 
 def main(argv=None) -> None:
+    distributed.guarded(_main, argv)
+
+
+def _main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--episodes", type=int, default=1000, help="test layouts")
     ap.add_argument("--validation-episodes", type=int, default=500, help="layouts that choose v_b*")
@@ -189,16 +194,23 @@ def main(argv=None) -> None:
     ap.add_argument("--curves", help="PSNR curves file (default: the shipped DeepJSCC curves)")
     ap.add_argument("--workers", type=int, default=2, help="processes for OR-Tools and the planner")
     ap.add_argument("--json", help="write the report here")
+    distributed.add_options(ap)
     args = ap.parse_args(argv)
     for name in ("episodes", "validation_episodes", "workers"):
         if getattr(args, name) < 1:
             ap.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
     if not all(np.isfinite(b) and b > 0 for b in args.B):
         ap.error(f"--B must be finite and > 0 Hz, got {args.B}")
+    try:
+        distributed.initialize(args)
+    except distributed.DistributedError as e:
+        ap.error(str(e))
     from semuav_jax.curves import load_curves
 
     r = report(make_params(load_curves(args.curves), B=args.B[0]), tuple(args.B), args.episodes,
                args.validation_episodes, args.workers)
+    if not distributed.is_main():  # process 0 alone reports and writes
+        return
     print(markdown(r))
     if args.json:
         atomic_write(args.json, json.dumps(r, indent=2).encode())

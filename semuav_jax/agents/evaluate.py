@@ -14,7 +14,7 @@ from flax import struct
 from semuav_jax.agents.ddqn import DDQNConfig, agent_input, command
 from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import rollout
-from semuav_jax.sharding import shard_episodes
+from semuav_jax.sharding import gather, shard_episodes
 
 
 @struct.dataclass
@@ -62,7 +62,7 @@ def evaluate_agent(network, net_params, config: DDQNConfig, keys, params: EnvPar
 def seed_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams, bandwidths) -> dict:
     """Per-episode metrics (seeds, len(bandwidths), E) of the greedy policy of every seed of ``nets``
     (weights with a leading seed axis) at every B, in one jitted program vmapped over seeds and B
-    and sharded over the host's devices."""
+    and sharded over every device of every process."""
     validate_params(params)
     if not all(0 < b < float("inf") for b in np.asarray(bandwidths, np.float64).ravel()):
         raise ValueError(f"bandwidths must be finite and > 0 Hz, got {bandwidths}")
@@ -70,8 +70,9 @@ def seed_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams, ban
     skeys = shard_episodes(keys)
     policy = greedy_policy(network, config)
 
-    def at(net, b):
-        return rollout(policy, skeys, params.replace(B=b), agent_state(net), state_axes=None)[0]
+    def at(net, b, k):  # the keys are an argument: a jit may not close over another process's shards
+        return rollout(policy, k, params.replace(B=b), agent_state(net), state_axes=None)[0]
 
-    out = jax.jit(jax.vmap(jax.vmap(at, (None, 0)), (0, None)))(nets, jnp.asarray(bandwidths, jnp.float32))
-    return {k: np.asarray(v)[..., :E] for k, v in out.items()}
+    out = jax.jit(jax.vmap(jax.vmap(at, (None, 0, None)), (0, None, None)))(nets, jnp.asarray(bandwidths, jnp.float32),
+                                                                            skeys)
+    return {k: v[..., :E] for k, v in gather(out).items()}

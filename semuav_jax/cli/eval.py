@@ -16,6 +16,7 @@ import sys
 import time
 from pathlib import Path
 
+from semuav_jax import distributed
 from semuav_jax.cli import interruptible
 
 
@@ -45,6 +46,7 @@ def parse_args(argv=None):
     p.add_argument("--animate", metavar="GIF", default=None,
                    help="only write an animated GIF: the agent (--agent, else the shipped one) and the references "
                         "flying the paper layout at 25 kHz side by side")
+    distributed.add_options(p)
     a = p.parse_args(argv)
     base = QUICK if a.quick else FULL
     a.grid = {"bandwidths": tuple(a.bandwidths or base["bandwidths"]), "velocities": tuple(a.velocities or base["velocities"]),
@@ -74,29 +76,32 @@ def agent_folder(args, out: Path) -> Path:
     """The run folder of the agent: the shipped one, --agent, or OUT/agent trained (or resumed) here."""
     from semuav_jax.cli import train
     from semuav_jax.agents.runs import CKPT_FILE, finished, shipped_folder
+    from semuav_jax.sharding import agree
 
     if args.quick:
         return shipped_folder()
     if args.agent:
         return Path(args.agent)
     folder = out / "agent"
-    if not finished(folder):
-        resume = ["--resume"] if (folder / CKPT_FILE).is_file() else []
+    if not agree(finished(folder)):  # every process decides alike (a shared folder)
+        resume = ["--resume"] if agree((folder / CKPT_FILE).is_file()) else []
         cmd = ["--out", str(folder), "--eval-episodes", "0", *resume] + (["--curves", args.curves] if args.curves else [])
         print(("resuming" if resume else "training") + f" the default agent in {folder} (python train.py {' '.join(cmd)})")
         if train.main(cmd) != 0:
             raise UsageError(f"training into {folder} failed")
+        distributed.barrier("agent trained")  # process 0 wrote it: the others read it next
     return folder
 
 
 def main(argv=None) -> int:
-    return interruptible(_main, argv, "the same command continues at the step it stopped in")
+    return interruptible(lambda a: distributed.guarded(_main, a), argv, "the same command continues at the step it stopped in")
 
 
 def _main(argv=None) -> int:
     try:
         args = parse_args(argv)
-    except UsageError as e:
+        distributed.initialize(args)
+    except (UsageError, distributed.DistributedError) as e:
         print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
         return 2
     if args.animate:
@@ -118,8 +123,9 @@ def _main(argv=None) -> int:
     t0 = time.time()
     try:
         check_writable_folder(out)
-        out.mkdir(parents=True, exist_ok=True)
-        remove_stale_temps(out, OUT_FILES)
+        if distributed.is_main():
+            out.mkdir(parents=True, exist_ok=True)
+            remove_stale_temps(out, OUT_FILES)
         folder = agent_folder(args, out)
         run, config, nets = load_run(folder)
         curves = load_curves(args.curves) if args.curves else None
@@ -144,6 +150,8 @@ def _main(argv=None) -> int:
              devices=jax.device_count(), grid={k: list(v) if isinstance(v, tuple) else v for k, v in args.grid.items()},
              **provenance(params))
     r["paths"] = {k: {m: (v.tolist() if hasattr(v, "tolist") else v) for m, v in p.items()} for k, p in r["paths"].items()}
+    if not distributed.is_main():  # process 0 alone writes the results
+        return 0
     atomic_write(out / "fig2.json", json.dumps(r, indent=2).encode())
     md = fig2.markdown(r)
     atomic_write(out / "fig2.md", (md + "\n").encode())

@@ -17,6 +17,7 @@ import sys
 import time
 from pathlib import Path
 
+from semuav_jax import distributed
 from semuav_jax.cli import interruptible
 
 from semuav_jax.agents.runs import (CKPT_FILE, CONFIG_FILE, CURVE_FILE, METRICS_FILE, MODEL_FILE, RUN_FILES, clear_run,
@@ -103,6 +104,7 @@ def parse_args(argv=None):
     g = p.add_mutually_exclusive_group()
     g.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
     g.add_argument("--overwrite", action="store_true", help="delete the contents of an existing --out first")
+    distributed.add_options(p)
     args = p.parse_args(argv)
     args.command = " ".join(["python train.py", *(sys.argv[1:] if argv is None else argv)])
     if args.out is None:
@@ -222,14 +224,15 @@ def segment_lengths(num_chunks: int, segments: int, done: int):
 
 
 def main(argv=None) -> int:
-    return interruptible(_main, argv, "the run folder is consistent: continue with --resume")
+    return interruptible(lambda a: distributed.guarded(_main, a), argv, "the run folder is consistent: continue with --resume")
 
 
 def _main(argv=None) -> int:
     try:
         args = parse_args(argv)
+        distributed.initialize(args)
         cfg = load_run_config(args)
-    except (UsageError, ValueError) as e:
+    except (UsageError, ValueError, distributed.DistributedError) as e:
         print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
         return 2
 
@@ -245,7 +248,8 @@ def _main(argv=None) -> int:
     try:
         params = run_params(cfg)
         config = ddqn_config(cfg, out / CONFIG_FILE)
-        prepare_folder(args, cfg)
+        if distributed.is_main():  # of several processes, process 0 writes the run folder
+            prepare_folder(args, cfg)
     except (UsageError, ValueError, FileNotFoundError) as e:
         print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
         return 2
@@ -297,6 +301,8 @@ def _main(argv=None) -> int:
                 rows.append({"seed": s, "chunk": done + c + 1, **{k: int(metrics[k][s, c]) if k in INT_COLUMNS
                                                                  else float(metrics[k][s, c]) for k in METRIC_COLUMNS[2:]}})
         done += n
+        if not distributed.is_main():
+            continue
         text = io.StringIO()
         w = csv.DictWriter(text, METRIC_COLUMNS)
         w.writeheader()
@@ -311,7 +317,9 @@ def _main(argv=None) -> int:
         print(f"stopped at chunk {done} / {config.num_chunks}; continue with --resume --out {out}")
         return 0
     wall = time.time() - t0
-    atomic_write(out / MODEL_FILE, serialization.to_bytes(state.params))
+    if distributed.is_main():
+        atomic_write(out / MODEL_FILE, serialization.to_bytes(state.params))
+    distributed.barrier("weights written")  # the evaluation below and eval.py read them in every process
     print(f"training: {config.num_chunks * config.steps_per_chunk * config.num_envs * cfg['seeds']:,} env steps "
           f"in {wall:.0f} s (this session)")
 
@@ -320,6 +328,8 @@ def _main(argv=None) -> int:
 
         report = evaluate_run(out, args.eval_episodes, args.validation_episodes, args.workers, log=tqdm.write,
                               extra={"train_wall_s": wall})
+        if not distributed.is_main():
+            return 0
         print(markdown(report))
         if config.bandwidth_range is None:  # one bandwidth: its references are comparable with the curve
             ref = {k: v["mean_psnr"] for k, v in report["rows"][-1]["references"].items()}

@@ -31,10 +31,12 @@ from baselines.policies import POLICIES
 from baselines.report import flights, tune
 from semuav_jax.agents.ddqn import DDQNConfig
 from semuav_jax.agents.evaluate import agent_state, greedy_policy, seed_metrics
+from semuav_jax.distributed import is_main
 from semuav_jax.io import atomic_write
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams
 from semuav_jax.rollout import rollout
+from semuav_jax.sharding import agree, split_hosts
 from semuav_jax.stats import mean_ci
 
 BANDWIDTHS = (5e3, 10e3, 15e3, 20e3, 25e3, 30e3, 35e3, 40e3)
@@ -114,11 +116,13 @@ def path(trace: dict, metrics: dict, i: int, params: EnvParams) -> dict:
 class Stages:
     """The steps of :func:`run`, each logged and saved to ``folder/<name>.msgpack`` when done (``folder`` None:
     nothing saved), so an interrupted run continues at the first step not done. ``key`` (JSON-able:
-    grid, agent, curves) is kept beside them; saved steps of another key are deleted first."""
+    grid, agent, curves) is kept beside them; saved steps of another key are deleted first. Of several
+    processes, process 0 saves; a step is loaded only if every process finds it."""
 
     def __init__(self, folder, key: dict, log=print):
         self.folder, self.log = (None if folder is None else Path(folder)), log
-        if self.folder is None:
+        self.writer = is_main()  # in a run of several processes, process 0 writes and every process reads
+        if self.folder is None or not self.writer:
             return
         self.folder.mkdir(parents=True, exist_ok=True)
         for t in self.folder.glob("*.????????.tmp"):  # atomic_write's temporary files, left by a kill
@@ -133,12 +137,12 @@ class Stages:
 
     def __call__(self, name: str, compute, save=lambda x: x, load=lambda x: x, describe=lambda out: ""):
         path = None if self.folder is None else self.folder / (name.split(" (")[0].replace(" ", "_") + ".msgpack")
-        if path is not None and path.is_file():
+        if path is not None and agree(path.is_file()):  # a step every process can read (a shared folder)
             out = load(serialization.msgpack_restore(path.read_bytes()))
             self.log(f"{name}{describe(out)} (saved before)")
             return out
         out = compute()
-        if path is not None:
+        if path is not None and self.writer:
             atomic_write(path, serialization.msgpack_serialize(_packable(save(out))))
         self.log(name + describe(out))
         return out
@@ -182,6 +186,12 @@ def _plan_dict(plan) -> dict:
     return {f: np.asarray(getattr(plan, f)) for f in plan.__dataclass_fields__}
 
 
+def shared_plans(keys, params: EnvParams, workers: int = 2) -> PlanState:
+    """``make_plans`` of the episodes ``keys``, each process planning its share (one plan per episode)."""
+    plan = split_hosts(lambda lo, hi: _plan_dict(make_plans(keys[lo:hi], params, workers=workers)), len(keys))
+    return PlanState(**{k: jnp.asarray(v) for k, v in plan.items()})
+
+
 def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, grid: dict, workers: int = 2,
         log=print, stages: Stages | None = None) -> dict:
     """Every number and path of Fig. 2 (JSON-ready except the paths' arrays). ``stages`` saves each
@@ -196,7 +206,7 @@ def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, 
                   describe=lambda t: ": " + ", ".join(f"{n} {t[n]['v_star']}" for n in ("greedy", "tsp")))
     # the TSP order does not depend on B: solved once
     rank = stage("TSP tours", lambda: np.asarray(tsp_ranks(keys, params, workers=workers)))
-    plans = [stage(f"planner at {khz(b)} kHz", lambda b=b: make_plans(keys, params.replace(B=b), workers=workers),
+    plans = [stage(f"planner at {khz(b)} kHz", lambda b=b: shared_plans(keys, params.replace(B=b), workers),
                    save=_plan_dict, load=lambda d: PlanState(**{k: jnp.asarray(v) for k, v in d.items()}))
              for b in sweep_B]
     refs = stage("references flown (greedy, TSP at 8.9 m/s and v_b*; greedy-dwell, TSP-dwell; both planners)",

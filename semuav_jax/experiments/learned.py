@@ -16,6 +16,8 @@ import numpy as np
 from baselines.report import BANDWIDTHS, flights, setting, summary, tune
 from semuav_jax.agents.ddqn import DDQNConfig, q_network
 from semuav_jax.agents.evaluate import seed_metrics
+from semuav_jax.distributed import is_main
+from semuav_jax.experiments.fig2 import shared_plans
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams
 from semuav_jax.stats import mean_ci, wilson_interval
@@ -34,7 +36,8 @@ def compare(network, nets, config: DDQNConfig, params: EnvParams, bandwidths=BAN
     tuned = tune(params, bandwidths, validation_episodes, workers=workers)
     log("v_b* on validation layouts: " + ", ".join(f"{n} {tuned[n]['v_star']}" for n in ("greedy", "tsp")))
     keys = episode_keys(TEST_SEED, episodes)
-    refs = flights(params, keys, tuned, bandwidths, workers)
+    plans = [shared_plans(keys, params.replace(B=b), workers) for b in bandwidths]  # each process plans its share
+    refs = flights(params, keys, tuned, bandwidths, workers, plans=plans)
     unshielded = dataclasses.replace(config, shield_margin=None)
     per_seed = seed_metrics(network, nets, config, keys, params, bandwidths)
     if ablate_shield and config.shield_margin is not None:
@@ -121,8 +124,9 @@ def evaluate_run(folder, episodes: int = 1000, validation_episodes: int = 500, w
     bandwidths = BANDWIDTHS if config.bandwidth_range is not None else (run["bandwidth"],)
     r = compare(network, nets, config, params, bandwidths, episodes, validation_episodes, workers, log=log)
     r.update(agent_command=run.get("command"), **(extra or {}), **provenance(params))
-    atomic_write(Path(folder) / EVAL_FILE, json.dumps(r, indent=2).encode())
-    atomic_write(Path(folder) / EVAL_MD, (markdown(r) + "\n").encode())
+    if is_main():  # of several processes, process 0 writes
+        atomic_write(Path(folder) / EVAL_FILE, json.dumps(r, indent=2).encode())
+        atomic_write(Path(folder) / EVAL_MD, (markdown(r) + "\n").encode())
     return r
 
 
