@@ -1,13 +1,10 @@
 """The paper's Fig. 2 from the seeds of one bandwidth-conditioned agent and the references
 (docs/RESULTS.md).
 
-(a) mean PSNR vs the devices' bandwidth B: the agent (mean over seeds, t interval across seeds),
-greedy and TSP at the paper's 8.9 m/s and at their tuned speed v_b*, greedy-dwell and TSP-dwell at
-their tuned knobs, the open-loop planner and the exact receding-horizon planner;
-(b) at B = 25 kHz: greedy and TSP vs their speed v_b, with arrival; the agent, the dwell rules and
-the planners, which set their own speeds, as bands;
-(c) the paper layout at B = 25 kHz: the trajectories of the agent, TSP at v_b*, TSP-dwell, the two
-planners, coloured by speed, with each device's dwell.
+(a) mean PSNR vs B: the agent (mean over seeds, t interval across seeds), greedy and TSP at 8.9 m/s
+and at v_b*, greedy-dwell and TSP-dwell at their tuned knobs, the open-loop and the exact planner;
+(b) at 25 kHz: greedy and TSP vs their speed v_b, with arrival; the others, at their own speed, as bands;
+(c) the paper layout at 25 kHz: the trajectories, coloured by speed, with each device's dwell.
 
 Every point uses the same test layouts (``keys.TEST_SEED``); v_b* is chosen on validation layouts
 (``keys.VALIDATION_SEED``). :func:`behaviour` measures what explains the numbers: speed while
