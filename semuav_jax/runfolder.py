@@ -51,7 +51,7 @@ def foreign_files(folder: Path, listed=()) -> list[str]:
         n = p.name
         if n in (MARKER, LOCK) or n in listed or (p.is_dir() and (n in top or owned(p))):
             continue
-        if n.endswith(".tmp") and any(n.startswith(f + ".") and len(n) == len(f) + 13 for f in listed):
+        if n.endswith(".tmp") and any(n.startswith(f + ".") and len(n) == len(f) + 13 for f in (*listed, MARKER)):
             continue
         out.append(n)
     return out
@@ -144,7 +144,7 @@ class RunFolder:
 
     def remove_temps(self) -> None:
         """Delete the temporaries a killed atomic_write of a listed file left."""
-        for name in self.marker["files"]:
+        for name in (*self.marker["files"], MARKER):
             p = self.path / name
             for t in p.parent.glob(f"{p.name}.????????.tmp"):
                 t.unlink()

@@ -14,23 +14,19 @@ transmitting and otherwise, dwell and symbols per served device, devices covered
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
 import jax
 import jax.numpy as jnp
 import numpy as np
-from flax import serialization
 
 from baselines import DEFAULT_V_B, init_state, sweep, tsp_ranks
-from baselines.planner import PlanState, make_plans, planner
+from baselines.planner import PLAN_SPEEDS, PlanState, make_plans, planner, visit_options
 from baselines.policies import POLICIES
 from baselines.report import flights, tune
 from semuav_jax.agents.ddqn import DDQNConfig
 from semuav_jax.agents.evaluate import agent_state, greedy_policy, seed_metrics
-from semuav_jax.io import atomic_write
+from semuav_jax.experiments.stages import Stages
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
-from semuav_jax.params import EnvParams
+from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import rollout
 from semuav_jax.stats import mean_ci
 
@@ -103,51 +99,6 @@ def path(trace: dict, metrics: dict, i: int, params: EnvParams) -> dict:
     return {"q": q, "speed": v, "dwell_s": dwell, **{k: float(np.asarray(m)[i]) for k, m in metrics.items()}}
 
 
-class Stages:
-    """The steps of :func:`run`, each logged and saved to ``folder/<name>.msgpack`` when done (``folder`` None:
-    nothing saved), so an interrupted run continues at the first step not done. ``key`` (JSON-able:
-    grid, agent, curves) is kept beside them; saved steps of another key are deleted first."""
-
-    def __init__(self, folder, key: dict, log=print):
-        self.folder, self.log = (None if folder is None else Path(folder)), log
-        if self.folder is None:
-            return
-        self.folder.mkdir(parents=True, exist_ok=True)
-        for t in self.folder.glob("*.????????.tmp"):  # atomic_write's temporary files, left by a kill
-            if t.name.startswith("key.json.") or t.name.split(".")[-3] == "msgpack":
-                t.unlink()
-        stamp = self.folder / "key.json"
-        text = json.dumps(key, sort_keys=True, default=str)
-        if not stamp.is_file() or stamp.read_text() != text:
-            for f in self.folder.glob("*.msgpack"):
-                f.unlink()
-            atomic_write(stamp, text.encode())
-
-    def __call__(self, name: str, compute, save=lambda x: x, load=lambda x: x, describe=lambda out: ""):
-        path = None if self.folder is None else self.folder / (name.split(" (")[0].replace(" ", "_") + ".msgpack")
-        if path is not None and path.is_file():
-            out = load(serialization.msgpack_restore(path.read_bytes()))
-            self.log(f"{name}{describe(out)} (saved before)")
-            return out
-        out = compute()
-        if path is not None:
-            atomic_write(path, serialization.msgpack_serialize(_packable(save(out))))
-        self.log(name + describe(out))
-        return out
-
-
-def _packable(x):
-    """x with tuples as lists and NumPy scalars as Python numbers (what msgpack takes); a restored
-    step compares equal in JSON."""
-    if isinstance(x, dict):
-        return {k: _packable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_packable(v) for v in x]
-    if isinstance(x, np.generic):
-        return x.item()
-    return np.asarray(x) if isinstance(x, jax.Array) else x
-
-
 def khz(b: float) -> str:
     """How a bandwidth names a step, a file and a key of the results: kHz, 6 significant digits."""
     return f"{b / 1e3:g}"
@@ -162,6 +113,19 @@ def check_bandwidths(bandwidths) -> None:
         if len(bs) > 1:
             raise ValueError(f"--bandwidths {' and '.join(f'{b!r}' for b in bs)} would both be named {name} kHz: "
                              "give bandwidths that differ in their first 6 digits")
+
+
+def check_point(params: EnvParams, b: float, velocities) -> None:
+    """ValueError (one line), before any step runs, unless the grid's bandwidth ``b`` and speeds give
+    valid parameters and finite planner service times (a B so small that one image never arrives)."""
+    at = params.replace(B=float(b))
+    validate_params(at)
+    for v in (*PLAN_SPEEDS, *velocities):
+        with np.errstate(divide="ignore", over="ignore"):
+            service = visit_options(min(float(v), float(at.v_max)), at)[2]
+        if not np.all(np.isfinite(np.asarray(service, np.float32))):
+            raise ValueError(f"--bandwidths {b:g}: too small for any image to arrive (the service time of a "
+                             "device is not finite in float32)")
 
 
 def stage_count(grid: dict) -> int:
