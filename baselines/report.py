@@ -131,15 +131,25 @@ def main(argv=None) -> None:
     ap.add_argument("--workers", type=int, default=2, help="processes for OR-Tools and the planner")
     ap.add_argument("--json", help="write the report here")
     args = ap.parse_args(argv)
-    for name in ("episodes", "validation_episodes", "workers"):
-        if getattr(args, name) < 1:
-            ap.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
+    for name, lo in (("episodes", 2), ("validation_episodes", 1), ("workers", 1)):  # an interval needs 2 episodes
+        if getattr(args, name) < lo:
+            ap.error(f"--{name.replace('_', '-')} must be >= {lo}, got {getattr(args, name)}")
     if not all(np.isfinite(b) and b > 0 for b in args.B):
         ap.error(f"--B must be finite and > 0 Hz, got {args.B}")
-    from semuav_jax.curves import load_curves
+    from pathlib import Path
 
-    r = report(make_params(load_curves(args.curves), B=args.B[0]), tuple(args.B), args.episodes,
-               args.validation_episodes, args.workers)
+    from semuav_jax.curves import load_curves
+    from semuav_jax.io import check_writable_folder
+
+    try:  # every path checked before the computation
+        if args.json and Path(args.json).is_dir():
+            raise ValueError(f"--json {args.json} is a folder, not a file")
+        if args.json:
+            check_writable_folder(Path(args.json).parent, "the folder of --json")
+        params = make_params(load_curves(args.curves), B=args.B[0])
+    except (ValueError, OSError) as e:
+        ap.error(str(e))
+    r = report(params, tuple(args.B), args.episodes, args.validation_episodes, args.workers)
     print(markdown(r))
     if args.json:
         atomic_write(args.json, json.dumps(r, indent=2).encode())

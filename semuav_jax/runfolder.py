@@ -74,8 +74,8 @@ class RunFolder:
     lists first (and starts a new run id); ``adopt`` (a tuple of names) accepts a folder without our
     marker that holds only those names (a run folder of an older version, resumed)."""
 
-    def __init__(self, path: Path, marker: dict):
-        self.path, self.marker = path, marker
+    def __init__(self, path: Path, marker: dict, locked: bool = True):
+        self.path, self.marker, self.locked = path, marker, locked  # locked: this claim took the lock
 
     @property
     def run_id(self) -> str:
@@ -93,7 +93,7 @@ class RunFolder:
         if marker is None:  # checked before we write anything into it (the lock included)
             cls._refuse_foreign(path, adopt, what)
         path.mkdir(parents=True, exist_ok=True)
-        _lock(path)
+        locked = _lock(path)  # False: this process holds it already (a claim inside a claim)
         try:
             marker = _read_marker(path)  # again, under the lock
             if marker is None:
@@ -102,14 +102,15 @@ class RunFolder:
                           "files": sorted(n for n in adopt if (path / n).exists())}
             elif marker.get("kind") != kind:
                 raise FolderError(f"{what} {path} is a {marker.get('kind')} folder, not a {kind} one: choose another {what}")
-            folder = cls(path, marker)
+            folder = cls(path, marker, locked)
             if overwrite:
                 folder.remove_listed()
                 folder.marker = {**marker, "run_id": secrets.token_hex(8), "files": []}
             folder._save_marker()
             folder.remove_temps()
         except BaseException:
-            release(path)
+            if locked:
+                release(path)
             raise
         return folder
 
@@ -160,18 +161,20 @@ class RunFolder:
                 pass
 
     def release(self) -> None:
-        release(self.path)
+        if self.locked:
+            release(self.path)
 
 
 _HELD: set[Path] = set()
 
 
-def _lock(path: Path) -> None:
-    """Create ``path/.semuav.lock`` exclusively; a lock of a dead process on this host is taken over."""
+def _lock(path: Path) -> bool:
+    """Create ``path/.semuav.lock`` exclusively (True), or find it held by this process (False); a
+    lock of a dead process on this host is taken over."""
     lock = path / LOCK
     me = {"pid": os.getpid(), "host": socket.gethostname(), "since": time.strftime("%Y-%m-%d %H:%M:%S")}
     if lock.resolve() in _HELD:
-        return
+        return False
     for _ in range(3):
         try:
             fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
@@ -197,7 +200,7 @@ def _lock(path: Path) -> None:
         with os.fdopen(fd, "w") as f:
             json.dump(me, f)
         _HELD.add(lock.resolve())
-        return
+        return True
     raise FolderError(f"could not lock {path} ({lock} keeps changing)")
 
 

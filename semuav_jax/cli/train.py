@@ -115,8 +115,8 @@ def parse_args(argv=None):
     for name in ("seeds", "segments", "max_segments", "workers", "validation_episodes"):
         if getattr(args, name) is not None and getattr(args, name) < 1:
             raise UsageError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
-    if args.eval_episodes < 0:
-        raise UsageError(f"--eval-episodes must be >= 0, got {args.eval_episodes}")
+    if args.eval_episodes < 0 or args.eval_episodes == 1:
+        raise UsageError(f"--eval-episodes must be 0 (no comparison) or >= 2 (its intervals need two), got {args.eval_episodes}")
     return args
 
 

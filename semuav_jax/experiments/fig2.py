@@ -28,7 +28,7 @@ from semuav_jax.experiments.stages import Stages
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import rollout
-from semuav_jax.stats import mean_ci
+from semuav_jax.stats import mean_ci, pm
 
 BANDWIDTHS = (5e3, 10e3, 15e3, 20e3, 25e3, 30e3, 35e3, 40e3)
 VELOCITIES = (4.0, 6.0, DEFAULT_V_B, 11.0, 14.0, 17.0, 20.0, 24.0)
@@ -223,8 +223,8 @@ def markdown(r: dict) -> str:
              "|---" * (5 + len(refs)) + "|"]
     for row in r["panel_a"]:
         cells = [f"{row[n]['mean_psnr'][0]:.2f}" + (f" ({row[n]['v_b']:g} m/s)" if "v_b*" in n else "") for n in refs]
-        margins = [f"{row[f'agent minus {n}'][0]:+.2f} ± {row[f'agent minus {n}'][1]:.2f}" for n in ("greedy v_b*", "tsp v_b*", "planner")]
-        lines.append(f"| {row['B'] / 1e3:g} | {row['agent'][0]:.2f} ± {row['agent'][1]:.2f} | " + " | ".join(cells + margins) + " |")
+        margins = [f"{row[f'agent minus {n}'][0]:+.2f} {pm(row[f'agent minus {n}'][1])}" for n in ("greedy v_b*", "tsp v_b*", "planner")]
+        lines.append(f"| {row['B'] / 1e3:g} | {row['agent'][0]:.2f} {pm(row['agent'][1])} | " + " | ".join(cells + margins) + " |")
     lines += ["", "Arrival: " + ", ".join(f"{row['B'] / 1e3:g} kHz DDQN {100 * row['agent_arrived']:.1f} % "
                                          f"(shield {100 * row['agent_shield_share']:.1f} % of slots)" for row in r["panel_a"]), "",
               "| v_b (m/s), B = 25 kHz | " + " | ".join(f"{v:g}" for v in r["velocities"]) + " |",
