@@ -152,7 +152,7 @@ def test_overwrite_deletes_only_run_files(curves_file, tmp_path):
         (["--seeds", "0"], "--seeds"),
         (["--total-steps", "3"], "less than one chunk"),
         (["--scenario", "moon"], "invalid choice"),
-        (["--bandwidth", "-5"], "B must be > 0"),
+        (["--bandwidth", "-5"], "bandwidth must be a finite number > 0"),
         (["--curves", "/nonexistent.npz"], "not found"),
         (["--lr", "nan"], "lr must be finite and > 0"),
         (["--lr", "inf"], "lr must be finite and > 0"),

@@ -82,13 +82,14 @@ def load_run(folder):
         run = json.loads((folder / CONFIG_FILE).read_text())
     except ValueError as e:
         raise ValueError(f"{folder / CONFIG_FILE} is not a train.py run config ({e})") from None
+    config = ddqn_config(run, folder / CONFIG_FILE)
     try:
         nets = serialization.msgpack_restore((folder / MODEL_FILE).read_bytes())
     except Exception as e:  # noqa: BLE001 - msgpack raises any kind for a file that is not one
         raise ValueError(f"{folder / MODEL_FILE} is not a weights file ({type(e).__name__})") from None
     seeds = run.get("seeds") if isinstance(run, dict) else None
     check_weights(run, nets, folder / MODEL_FILE, seeds if isinstance(seeds, int) and not isinstance(seeds, bool) else None)
-    return run, ddqn_config(run, folder / CONFIG_FILE), nets
+    return run, config, nets
 
 
 def ddqn_config(run, where) -> DDQNConfig:

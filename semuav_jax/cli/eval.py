@@ -108,10 +108,12 @@ def _main(argv=None) -> int:
 
     from semuav_jax.agents.runs import load_run
     from semuav_jax.curves import load_curves
+    from semuav_jax.io import check_writable_folder
 
     t0 = time.time()
     try:
-        curves = load_curves(args.curves) if args.curves else None  # every path checked before any computation
+        check_writable_folder(args.out)  # every path checked before any computation or write
+        curves = load_curves(args.curves) if args.curves else None
         if args.agent:
             load_run(args.agent)
         results = claim_out(args)

@@ -144,7 +144,7 @@ def load_run_config(args) -> dict:
     if args.resume:
         return saved_config(args)
     cfg = run_config(args)
-    check_run(cfg, "train.py")
+    check_run(cfg, "")
     return cfg
 
 

@@ -36,7 +36,7 @@ def check_run(cfg: dict, where: str) -> None:
     """UsageError (one line) unless the run description ``cfg`` (built from the options, or read from
     config.json at ``where``) holds values the command line would accept."""
     def bad(name, v, want):
-        raise UsageError(f"{where}: {name} must be {want}, got {v!r}")
+        raise UsageError(f"{where}{': ' if where else ''}{name} must be {want}, got {v!r}")
 
     for name in ("seeds", "segments"):
         v = cfg.get(name)
@@ -55,7 +55,7 @@ def check_run(cfg: dict, where: str) -> None:
     if cfg.get("curves") is not None and not isinstance(cfg["curves"], str):
         bad("curves", cfg["curves"], "a file name, 'synthetic' or null")
     try:
-        ddqn_config(cfg, where)
+        ddqn_config(cfg, where or "the options")
     except ValueError as e:
         raise UsageError(str(e)) from None
 

@@ -104,9 +104,10 @@ def evaluate_run(folder, episodes: int = 1000, validation_episodes: int = 500, w
                  extra: dict | None = None) -> dict:
     """:func:`compare` for the seeds of a finished ``train.py`` run folder; writes its eval.json and
     eval.md (the folder claimed and locked meanwhile, ``semuav_jax.runfolder``)."""
-    from semuav_jax.agents.runs import RUN_FILES
+    from semuav_jax.agents.runs import RUN_FILES, load_run
     from semuav_jax.runfolder import RunFolder
 
+    load_run(folder)  # a one-line error before anything is written into the folder
     run_folder = RunFolder.claim(folder, "train.py run", adopt=RUN_FILES)
     try:
         return _evaluate_run(run_folder, episodes, validation_episodes, workers, log, extra)
