@@ -282,16 +282,39 @@ def test_jscc_figure_needs_an_image_path(tmp_path, capsys):
     assert list(tmp_path.iterdir()) == []
 
 
+def _jscc_checkpoint(folder, scale=1.0):
+    """A checkpoint of a width-4 DeepJSCC at its initial weights times ``scale``, without training."""
+    from semuav_jax.jscc.train import TrainConfig, init_params, make_optimizer, save_checkpoint
+
+    cfg = TrainConfig(steps=2, batch=2, width=4, monotone_weight=0.0, synthetic_fraction=0.0)
+    params = jax.tree.map(lambda x: x * scale, init_params(cfg))
+    folder.mkdir()
+    save_checkpoint(folder, cfg, params, make_optimizer(cfg).init(params), 2, [(2, 0.0, 1.0)])
+
+
+@pytest.mark.slow
+def test_jscc_curves_write_only_the_paths_named(tmp_path, capsys):
+    from semuav_jax.curves import load_curves
+    from semuav_jax.jscc.__main__ import main
+
+    _jscc_checkpoint(tmp_path / "ckpt")
+    (tmp_path / "d").mkdir()
+    (tmp_path / "d" / "deepjscc.msgpack").write_text("the user's model")
+    assert main(["curves", "--ckpt", str(tmp_path / "ckpt"), "--out", str(tmp_path / "d" / "c.npz")]) == 0
+    assert sorted(p.name for p in (tmp_path / "d").iterdir()) == ["c.npz", "deepjscc.msgpack"]
+    assert (tmp_path / "d" / "deepjscc.msgpack").read_text() == "the user's model"
+    assert load_curves(tmp_path / "d" / "c.npz").meta["model_file"] is None
+    assert main(["curves", "--ckpt", str(tmp_path / "ckpt"), "--out", str(tmp_path / "d" / "c.npz"),
+                 "--model-out", str(tmp_path / "d" / "m.msgpack")]) == 0
+    assert sorted(p.name for p in (tmp_path / "d").iterdir()) == ["c.npz", "deepjscc.msgpack", "m.msgpack"]
+
+
 @pytest.mark.slow
 def test_jscc_curves_of_a_non_finite_checkpoint_write_nothing(tmp_path, capsys):
     """A NaN model neither replaces the user's deepjscc.msgpack beside --out nor writes curves."""
     from semuav_jax.jscc.__main__ import main
-    from semuav_jax.jscc.train import TrainConfig, init_params, make_optimizer, save_checkpoint
 
-    cfg = TrainConfig(steps=2, batch=2, width=4, monotone_weight=0.0, synthetic_fraction=0.0)
-    params = jax.tree.map(lambda x: x * jnp.nan, init_params(cfg))
-    (tmp_path / "ckpt").mkdir()
-    save_checkpoint(tmp_path / "ckpt", cfg, params, make_optimizer(cfg).init(params), 2, [(2, 0.0, 1.0)])
+    _jscc_checkpoint(tmp_path / "ckpt", jnp.nan)
     (tmp_path / "d").mkdir()
     (tmp_path / "d" / "deepjscc.msgpack").write_text("the user's model")
     code, err = _err(capsys, main, ["curves", "--ckpt", str(tmp_path / "ckpt"), "--out", str(tmp_path / "d" / "c.npz")])
