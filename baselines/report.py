@@ -19,11 +19,11 @@ import numpy as np
 
 from baselines.bound import psnr_bound
 from baselines.evaluate import run, sweep, tsp_ranks
-from baselines.planner import make_plans, planner
+from baselines.planner import PLAN_SPEEDS, make_plans, planner, visit_options
 from baselines.policies import DEFAULT_V_B
 from semuav_jax.io import atomic_write
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
-from semuav_jax.params import make_params
+from semuav_jax.params import make_params, validate_params
 from semuav_jax.stats import mean_ci, wilson_interval
 
 SPEED_GRID = tuple(float(v) for v in range(6, 26))  # m/s, 6..25 in 1 m/s steps
@@ -75,6 +75,19 @@ def summary(m: dict) -> dict:
     lo, hi = wilson_interval(arrived.mean(), arrived.size)
     return {"mean_psnr": mean, "ci95": ci, "coverage": float(np.mean(m["coverage"])), "arrived": float(arrived.mean()),
             "arrived_wilson95": [float(lo), float(hi)]}
+
+
+def check_bandwidth(params, b: float, velocities=()) -> None:
+    """ValueError (one line), before any computation, unless the bandwidth ``b`` and the speeds give
+    valid parameters and finite planner service times (a B so small that one image never arrives)."""
+    at = params.replace(B=float(b))
+    validate_params(at)
+    for v in (*PLAN_SPEEDS, *velocities):
+        with np.errstate(divide="ignore", over="ignore"):
+            service = visit_options(min(float(v), float(at.v_max)), at)[2]
+        if not np.all(np.isfinite(np.asarray(service, np.float32))):
+            raise ValueError(f"bandwidth {b:g} Hz is too small for any image to arrive (the service time of a "
+                             "device is not finite in float32)")
 
 
 def report(params, bandwidths=BANDWIDTHS, episodes: int = 1000, validation_episodes: int = 500, workers: int = 2,
@@ -147,6 +160,8 @@ def main(argv=None) -> None:
         if args.json:
             check_writable_folder(Path(args.json).parent, "the folder of --json")
         params = make_params(load_curves(args.curves), B=args.B[0])
+        for b in args.B:
+            check_bandwidth(params, b)
     except (ValueError, OSError) as e:
         ap.error(str(e))
     r = report(params, tuple(args.B), args.episodes, args.validation_episodes, args.workers)

@@ -117,7 +117,7 @@ TINY = ["--curves", "synthetic", "--num-envs", "4", "--steps-per-chunk", "5", "-
 
 
 def _train(*args, timeout=120):
-    return subprocess.run([sys.executable, str(ROOT / "train.py"), *args], capture_output=True, text=True, cwd=ROOT,
+    return subprocess.run([sys.executable, str(ROOT / "train.py"), *args], capture_output=True, text=True, cwd=ROOT, check=False,
                           env=ENV, timeout=timeout)
 
 

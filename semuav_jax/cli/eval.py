@@ -106,7 +106,9 @@ def _main(argv=None) -> int:
         print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
         return 2
 
+    from baselines.report import check_bandwidth
     from semuav_jax.agents.runs import load_run
+    from semuav_jax.agents.scenarios import scenario_params
     from semuav_jax.curves import load_curves
     from semuav_jax.io import check_writable_folder
 
@@ -114,6 +116,9 @@ def _main(argv=None) -> int:
     try:
         check_writable_folder(args.out)  # every path checked before any computation or write
         curves = load_curves(args.curves) if args.curves else None
+        base = scenario_params("random", curves, reward_mode="gain")
+        for b in args.grid["bandwidths"]:
+            check_bandwidth(base, b, args.grid["velocities"])
         if args.agent:
             load_run(args.agent)
         results = claim_out(args)
@@ -143,8 +148,6 @@ def _evaluate(args, results, curves, t0) -> int:
         run, config, nets = load_run(folder)
         params = scenario_params("random", curves, reward_mode=run.get("reward_mode", "gain"), B=25e3)
         fixed = scenario_params("fixed", curves, reward_mode=run.get("reward_mode", "gain"), B=25e3)
-        for b in args.grid["bandwidths"]:
-            fig2.check_point(params, b, args.grid["velocities"])
     except (UsageError, ValueError, FileNotFoundError, OSError) as e:
         print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
         return 2

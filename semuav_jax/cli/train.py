@@ -234,12 +234,9 @@ def _train(args, cfg, params, config, folder) -> int:
                     np.shape(a) != b.shape for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(template))):
                 raise ValueError("its arrays do not match config.json")
             rows = read_metrics(out, int(np.asarray(state.chunk)[0]))
-        except UsageError as e:
-            print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
-            return 2
         except Exception as e:  # noqa: BLE001 - flax raises any kind for a file that is not this checkpoint
-            print(f"{Path(sys.argv[0]).name}: error: --resume: {out / CKPT_FILE} is unreadable or not this run's checkpoint ({e})",
-                  file=sys.stderr)
+            text = e if isinstance(e, UsageError) else f"--resume: {out / CKPT_FILE} is unreadable or not this run's checkpoint ({e})"
+            print(f"{Path(sys.argv[0]).name}: error: {text}", file=sys.stderr)
             return 2
         print(f"resuming {out} at chunk {int(np.asarray(state.chunk)[0])} / {config.num_chunks}")
 
@@ -256,9 +253,10 @@ def _train(args, cfg, params, config, folder) -> int:
         metrics = jax.tree.map(np.asarray, metrics)
         if not np.isfinite(metrics["loss"]).all() or not all(np.isfinite(w).all() for w in jax.tree.leaves(state.params)):
             bar.close()
+            kept = f"keeps its checkpoint at chunk {done}" if (out / CKPT_FILE).is_file() else "has no checkpoint"
             print(f"{Path(sys.argv[0]).name}: error: training diverged (non-finite loss or weights) in chunks "
-                  f"{done + 1}..{done + n}; {out} keeps its checkpoint at chunk {done} and no model: start again with "
-                  "other options (e.g. a smaller --lr) and --overwrite", file=sys.stderr)
+                  f"{done + 1}..{done + n}; {out} {kept} and no model: start again with other options (e.g. a smaller "
+                  "--lr) and --overwrite", file=sys.stderr)
             return 2
         for s in range(cfg["seeds"]):
             for c in range(n):

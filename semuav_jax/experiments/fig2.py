@@ -19,14 +19,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from baselines import DEFAULT_V_B, init_state, sweep, tsp_ranks
-from baselines.planner import PLAN_SPEEDS, PlanState, make_plans, planner, visit_options
+from baselines.planner import PlanState, make_plans, planner
 from baselines.policies import POLICIES
 from baselines.report import flights, tune
 from semuav_jax.agents.ddqn import DDQNConfig
 from semuav_jax.agents.evaluate import agent_state, greedy_policy, seed_metrics
 from semuav_jax.experiments.stages import Stages
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
-from semuav_jax.params import EnvParams, validate_params
+from semuav_jax.params import EnvParams
 from semuav_jax.rollout import rollout
 from semuav_jax.stats import mean_ci, pm
 
@@ -113,19 +113,6 @@ def check_bandwidths(bandwidths) -> None:
         if len(bs) > 1:
             raise ValueError(f"--bandwidths {' and '.join(f'{b!r}' for b in bs)} would both be named {name} kHz: "
                              "give bandwidths that differ in their first 6 digits")
-
-
-def check_point(params: EnvParams, b: float, velocities) -> None:
-    """ValueError (one line), before any step runs, unless the grid's bandwidth ``b`` and speeds give
-    valid parameters and finite planner service times (a B so small that one image never arrives)."""
-    at = params.replace(B=float(b))
-    validate_params(at)
-    for v in (*PLAN_SPEEDS, *velocities):
-        with np.errstate(divide="ignore", over="ignore"):
-            service = visit_options(min(float(v), float(at.v_max)), at)[2]
-        if not np.all(np.isfinite(np.asarray(service, np.float32))):
-            raise ValueError(f"--bandwidths {b:g}: too small for any image to arrive (the service time of a "
-                             "device is not finite in float32)")
 
 
 def stage_count(grid: dict) -> int:
