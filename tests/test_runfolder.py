@@ -116,7 +116,7 @@ TINY = ["--curves", "synthetic", "--num-envs", "4", "--steps-per-chunk", "5", "-
         "--learning-starts", "32", "--batch-size", "8", "--segments", "2", "--eval-episodes", "0", "--workers", "1"]
 
 
-def _train(*args, timeout=120):
+def _train(*args, timeout=600):
     return subprocess.run([sys.executable, str(ROOT / "train.py"), *args], capture_output=True, text=True, cwd=ROOT, check=False,
                           env=ENV, timeout=timeout)
 
