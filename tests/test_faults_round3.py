@@ -346,3 +346,57 @@ def test_baselines_report_checks_options_and_paths_first(tmp_path, argv, msg):
     res = subprocess.run([sys.executable, "-m", "baselines.report", *argv, *extra], capture_output=True, text=True, check=False,
                          cwd=ROOT, timeout=120)
     assert res.returncode == 2 and msg in res.stderr and "Traceback" not in res.stderr, res.stderr
+
+
+@pytest.mark.slow
+def test_jscc_train_that_diverges_exits_2_and_saves_nothing(tmp_path, capsys, monkeypatch):
+    from semuav_jax.jscc import data
+    from semuav_jax.jscc.__main__ import main
+
+    monkeypatch.setattr(data, "builtin_train_photos", lambda: [np.random.default_rng(0).random((40, 40, 3), dtype=np.float32)])
+    code, err = _err(capsys, main, ["train", "--out", str(tmp_path / "j"), "--steps", "2", "--batch", "2", "--width", "4",
+                                    "--monotone-weight", "0", "--synthetic-fraction", "0", "--snr-db", "-1000"])
+    assert code == 2 and "training diverged at step 1" in err and err.count("\n") == 1, err
+    assert not (tmp_path / "j" / "checkpoint.msgpack").exists() and not (tmp_path / "j" / ".semuav.lock").exists()
+
+
+TRAIN_TINY = ["--curves", "synthetic", "--num-envs", "4", "--steps-per-chunk", "5", "--total-steps", "80",
+              "--learning-starts", "32", "--batch-size", "8", "--segments", "2", "--eval-episodes", "0", "--workers", "1"]
+
+
+@pytest.mark.slow
+def test_train_that_diverges_exits_2_without_a_finished_run(tmp_path):
+    out = tmp_path / "r"
+    res = subprocess.run([sys.executable, str(ROOT / "train.py"), *TRAIN_TINY, "--lr", "1e38", "--out", str(out)],
+                         capture_output=True, text=True, cwd=ROOT, timeout=900, check=False)
+    assert res.returncode == 2 and "training diverged (non-finite loss or weights)" in res.stderr, res.stderr
+    assert res.stderr.strip().splitlines()[-1].startswith("train.py: error:")
+    assert not (out / "model.msgpack").exists() and not (out / "checkpoint.msgpack").exists()
+
+
+@pytest.mark.slow
+def test_ctrl_c_before_the_first_checkpoint_then_resume_finishes(tmp_path):
+    """A real SIGINT during the first segment: exit 130, no checkpoint; --resume restarts from chunk 0
+    and finishes the run."""
+    import signal
+    import time
+
+    out = tmp_path / "r"
+    p = subprocess.Popen([sys.executable, str(ROOT / "train.py"), *TRAIN_TINY, "--out", str(out)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    try:
+        deadline = time.time() + 600
+        while not (out / "config.json").exists() and time.time() < deadline and p.poll() is None:
+            time.sleep(0.2)
+        p.send_signal(signal.SIGINT)
+        _, err = p.communicate(timeout=600)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait(timeout=60)
+    assert p.returncode == 130 and "--resume or the same command starts it again" in err, err
+    assert not (out / "checkpoint.msgpack").exists()
+    res = subprocess.run([sys.executable, str(ROOT / "train.py"), "--out", str(out), "--resume"], capture_output=True,
+                         text=True, cwd=ROOT, timeout=900, check=False)
+    assert res.returncode == 0 and "no checkpoint yet: starting its run from chunk 0" in res.stdout, res.stderr
+    assert (out / "model.msgpack").is_file()

@@ -22,7 +22,7 @@ def _train(a) -> None:
         raise ValueError("give at most one of --images and --cifar10")
     if a.minutes is not None and not a.minutes > 0:
         raise ValueError(f"--minutes must be positive, got {a.minutes}")
-    check_out(a.out, a.resume, a.overwrite)
+    check_out(a.out, a.resume, a.overwrite).release()  # checked now; train() claims it for the run
     # every TrainConfig field has the --option of the same name, None when not given
     given = {f.name: getattr(a, f.name) for f in dataclasses.fields(TrainConfig) if getattr(a, f.name) is not None}
     if a.resume:
