@@ -23,13 +23,13 @@ from baselines import receding
 from baselines.bound import psnr_bound
 from baselines.dwell import DWELL_POLICIES, dwell_metrics, dwell_sweep, grid_points
 from baselines.evaluate import run, sweep, tsp_ranks
-from baselines.planner import make_plans, planner
+from baselines.planner import PLAN_SPEEDS, make_plans, planner, visit_options
 from baselines.policies import DEFAULT_V_B
 from baselines.travel_bound import flight_account, travel_bound
 from semuav_jax import distributed
 from semuav_jax.io import atomic_write
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
-from semuav_jax.params import make_params
+from semuav_jax.params import make_params, validate_params
 from semuav_jax.stats import mean_ci, wilson_interval
 
 SPEED_GRID = tuple(float(v) for v in range(6, 26))  # m/s, 6..25 in 1 m/s steps
@@ -106,6 +106,19 @@ def summary(m: dict, T_s: float | None = None) -> dict:
 
 
 EXACT_VS = ("planner", "greedy-dwell", "tsp-dwell")  # the exact planner's target: the best of these + 0.5 dB
+
+
+def check_bandwidth(params, b: float, velocities=()) -> None:
+    """ValueError (one line), before any computation, unless the bandwidth ``b`` and the speeds give
+    valid parameters and finite planner service times (a B so small that one image never arrives)."""
+    at = params.replace(B=float(b))
+    validate_params(at)
+    for v in (*PLAN_SPEEDS, *velocities):
+        with np.errstate(divide="ignore", over="ignore"):
+            service = visit_options(min(float(v), float(at.v_max)), at)[2]
+        if not np.all(np.isfinite(np.asarray(service, np.float32))):
+            raise ValueError(f"bandwidth {b:g} Hz is too small for any image to arrive (the service time of a "
+                             "device is not finite in float32)")
 
 
 def report(params, bandwidths=BANDWIDTHS, episodes: int = 1000, validation_episodes: int = 500, workers: int = 2,
@@ -196,19 +209,28 @@ def _main(argv=None) -> None:
     ap.add_argument("--json", help="write the report here")
     distributed.add_options(ap)
     args = ap.parse_args(argv)
-    for name in ("episodes", "validation_episodes", "workers"):
-        if getattr(args, name) < 1:
-            ap.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
+    for name, lo in (("episodes", 2), ("validation_episodes", 1), ("workers", 1)):  # an interval needs 2 episodes
+        if getattr(args, name) < lo:
+            ap.error(f"--{name.replace('_', '-')} must be >= {lo}, got {getattr(args, name)}")
     if not all(np.isfinite(b) and b > 0 for b in args.B):
         ap.error(f"--B must be finite and > 0 Hz, got {args.B}")
-    try:
-        distributed.initialize(args)
-    except distributed.DistributedError as e:
-        ap.error(str(e))
-    from semuav_jax.curves import load_curves
+    from pathlib import Path
 
-    r = report(make_params(load_curves(args.curves), B=args.B[0]), tuple(args.B), args.episodes,
-               args.validation_episodes, args.workers)
+    from semuav_jax.curves import load_curves
+    from semuav_jax.io import check_writable_folder
+
+    try:  # every path checked before the computation
+        distributed.initialize(args)
+        if args.json and Path(args.json).is_dir():
+            raise ValueError(f"--json {args.json} is a folder, not a file")
+        if args.json:
+            check_writable_folder(Path(args.json).parent, "the folder of --json")
+        params = make_params(load_curves(args.curves), B=args.B[0])
+        for b in args.B:
+            check_bandwidth(params, b)
+    except (ValueError, OSError, distributed.DistributedError) as e:
+        ap.error(str(e))
+    r = report(params, tuple(args.B), args.episodes, args.validation_episodes, args.workers)
     if not distributed.is_main():  # process 0 alone reports and writes
         return
     print(markdown(r))

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 from gymnax.environments import environment, spaces
 
@@ -161,7 +162,23 @@ class SemUAVEnv(environment.Environment[EnvState, EnvParams]):
         return super().reset(key, self._check(params))
 
     def step(self, key, state: EnvState, action, params: EnvParams | None = None):
-        return super().step(key, state, action, self._check(params))
+        params = self._check(params)
+        self._check_action(state, action, params)
+        return super().step(key, state, action, params)
+
+    def _check_action(self, state: EnvState, action, params: EnvParams) -> None:
+        """ValueError (one line) for a state of another N, an action that is not an integer, or a
+        concrete action out of range (a traced one out of range makes ``info["valid"]`` False)."""
+        if np.shape(state.m)[-1:] != (params.N,):
+            raise ValueError(f"state has {np.shape(state.m)[-1]} devices but params N = {params.N}")
+        n = num_actions(self.actions, params)
+        dtype = getattr(action, "dtype", None) if isinstance(action, jax.core.Tracer) else np.asarray(action).dtype
+        if dtype is None or dtype == bool or not np.issubdtype(dtype, np.integer):
+            raise ValueError(f"action must be an integer in [0, {n}), got {action!r}")
+        if not isinstance(action, jax.core.Tracer):
+            a = np.asarray(action)
+            if a.ndim != 0 or not 0 <= int(a) < n:
+                raise ValueError(f"action must be an integer in [0, {n}), got {action!r}")
 
     @property
     def default_params(self) -> EnvParams:
@@ -200,8 +217,9 @@ class SemUAVEnv(environment.Environment[EnvState, EnvParams]):
 
     def step_env(self, key, state: EnvState, action, params: EnvParams):
         new, rew = transition(key, state, to_accel(self.actions, action, state, params), params)
+        in_range = (action >= 0) & (action < num_actions(self.actions, params))
         info = {"discount": self.discount(new, params), "arrived": new.arrived, "delay": new.delay,
-                "valid": params_valid(params)}
+                "valid": params_valid(params) & in_range}
         return self.get_obs(new, params), new, rew, new.done, info
 
 

@@ -80,6 +80,8 @@ class SemUAVGymEnv(gymnasium.Env):
         self._key = None
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**32):
+            raise ValueError(f"seed must be an integer in [0, 2**32) (JAX keys alias seeds modulo 2**32), got {seed!r}")
         super().reset(seed=seed)
         if seed is not None:
             self._key = jax.random.key(seed)

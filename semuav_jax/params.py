@@ -76,7 +76,7 @@ class EnvParams:
 
 def make_params(
     curves: PSNRCurves | np.ndarray | None = None,
-    N: int = 10,
+    N: int | None = None,
     device_pos=None,
     device_img=None,
     **overrides,
@@ -85,7 +85,8 @@ def make_params(
 
     ``curves``: a :class:`PSNRCurves`, a bare array C, or None for the shipped DeepJSCC curves.
     ``device_pos`` (N, 2) and ``device_img`` (N,) set the fixed layout (``layout="fixed"``); for
-    the random layout only their shape matters and they default to a placeholder of N devices.
+    the random layout only their shape matters and they default to a placeholder of N devices
+    (default 10; N given with ``device_pos`` must equal its length).
     """
     if curves is None:
         curves = load_curves()
@@ -93,11 +94,20 @@ def make_params(
     validate_curves(C)
     if "M" not in overrides:
         overrides["M"] = C.shape[1] - 1
+    if N is not None and (not isinstance(N, (int, np.integer)) or isinstance(N, bool)):
+        raise ValueError(f"N must be an integer, got {N!r}")
     if device_pos is None:
         if overrides.get("layout") == "fixed":
             raise ValueError("layout='fixed' needs device_pos (N, 2) in metres")
-        device_pos = np.zeros((N, 2), np.float32)
+        device_pos = np.zeros((10 if N is None else max(N, 0), 2), np.float32)
     device_pos = np.asarray(device_pos, np.float32)
+    if device_pos.ndim != 2 or device_pos.shape[1] != 2:
+        raise ValueError(f"device_pos must have shape (N, 2), got {device_pos.shape}")
+    if N is not None and N != device_pos.shape[0]:
+        raise ValueError(f"N = {N} disagrees with device_pos, which holds {device_pos.shape[0]} devices")
+    for k, v in overrides.items():
+        if k in _SCALARS and np.ndim(v) != 0:
+            raise ValueError(f"{k} must be a scalar, got shape {np.shape(v)}")
     if device_img is None:
         device_img = np.arange(device_pos.shape[0]) % C.shape[0]
     if overrides.get("airspace_margin", 0.0) is None:
@@ -124,9 +134,14 @@ _STATIC = ("K", "M", "levels", "reward_mode", "layout")
 # (name, lower bound, inclusive?) for the positive scalars; checked on every entry of a sweep.
 _POSITIVE = (
     "Lx", "Ly", "tau", "H", "P_n", "noise", "B", "r_arr", "a_max", "v_max",
-    "P_b", "B_b", "L_cmd", "beta", "f_c", "c", "eps",
+    "P_b", "B_b", "L_cmd", "beta", "f_c", "c", "eps", "los_a", "los_b",
 )
-_NON_NEGATIVE = ("proc_max", "bs_h", "r_g", "P_miss", "kappa_d", "kappa_c", "airspace_margin")
+_NON_NEGATIVE = ("proc_max", "bs_h", "r_g", "P_miss", "kappa_d", "kappa_c", "airspace_margin", "eta_los", "eta_nlos")
+_VECTORS = ("C", "device_pos", "device_img", "q0", "q_fin", "bs_pos")
+_SCALARS = tuple(k for k in EnvParams.__dataclass_fields__ if k not in _VECTORS and k not in _STATIC)
+# lengths and speeds the dynamics square (|v|^2, distances^2): |x| must stay below sqrt(float32 max)
+_SQUARED = ("Lx", "Ly", "H", "D_com", "r_arr", "a_max", "v_max", "bs_h", "q0", "q_fin", "bs_pos", "device_pos")
+SQUARE_MAX = 1.8e19
 _MAY_BE_INF = ("device_img", "airspace_margin")
 
 
@@ -143,6 +158,8 @@ def params_valid(params: EnvParams):
         ok &= jnp.all(jnp.asarray(getattr(params, name)) > 0)
     for name in _NON_NEGATIVE:
         ok &= jnp.all(jnp.asarray(getattr(params, name)) >= 0)
+    for name in _SQUARED:
+        ok &= jnp.all(jnp.abs(jnp.asarray(getattr(params, name))) < SQUARE_MAX)
     ok &= jnp.all(params.D_com > params.H)
     img = jnp.asarray(params.device_img)
     return ok & jnp.all((img >= 0) & (img < params.C.shape[0]))
@@ -183,6 +200,11 @@ def validate_params(params: EnvParams) -> None:
         v = vals[name]
         if v is not None and not np.all(v >= 0):
             raise ValueError(f"{name} must be >= 0, got {v}")
+    for name in _SQUARED:
+        v = vals[name]
+        if v is not None and not np.all(np.abs(v) < SQUARE_MAX):
+            raise ValueError(f"{name} must be below {SQUARE_MAX:.1e} in magnitude (its square must be finite in "
+                             f"float32), got {v}")
     H, D = vals["H"], vals["D_com"]
     if H is not None and D is not None and not np.all(D > H):
         raise ValueError(

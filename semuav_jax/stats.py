@@ -8,10 +8,11 @@ from scipy import stats
 
 
 def mean_ci(x, level: float = 0.95):
-    """Mean of x and the half-width of its Student-t confidence interval (0 for a single value)."""
+    """Mean of x and the half-width of its Student-t confidence interval (None for a single value:
+    one sample has no interval)."""
     x = np.asarray(x, np.float64).ravel()
     if len(x) < 2:
-        return float(x.mean()), 0.0
+        return float(x.mean()), None
     return float(x.mean()), float(stats.t.ppf(0.5 + level / 2, len(x) - 1) * x.std(ddof=1) / np.sqrt(len(x)))
 
 
@@ -22,3 +23,8 @@ def wilson_interval(p, n, z: float = 1.96):
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
     return centre - half, centre + half
+
+
+def pm(half, digits: int = 2) -> str:
+    """``± half`` for a table, ``± n/a`` when there is no interval (one sample)."""
+    return "± n/a" if half is None else f"± {half:.{digits}f}"

@@ -43,9 +43,12 @@ def reduced(curves, tmp_path_factory):
     nets = jax.vmap(tr.init)(jax.random.split(jax.random.key(0), 2)).params  # two untrained seeds
     run = lambda stages=None: fig2.run(tr.network, nets, config, params, fixed, GRID, workers=1, log=lambda m: None,
                                        stages=stages)
-    folder, logged = tmp_path_factory.mktemp("stages"), []
+    from semuav_jax.runfolder import RunFolder
+
+    folder, logged = RunFolder.claim(tmp_path_factory.mktemp("stages"), "eval.py results"), []
     saved = run(fig2.Stages(folder, {"grid": GRID}, log=lambda m: None))
     resumed = run(fig2.Stages(folder, {"grid": GRID}, log=logged.append))
+    folder.release()
     return params, run(), saved, resumed, logged
 
 
@@ -82,29 +85,23 @@ def test_identical_under_fixed_keys_and_after_resuming(reduced):
     assert all(m.endswith("(saved before)") for m in logged[:-1]) and logged[-1] == "paths on the paper layout"
 
 
-def test_saved_steps_of_another_key_are_dropped(tmp_path):
-    (tmp_path / "agent_evaluated.msgpack").write_bytes(b"old")
-    fig2.Stages(tmp_path, {"grid": 1})
-    assert not (tmp_path / "agent_evaluated.msgpack").exists()
-    (tmp_path / "agent_evaluated.msgpack").write_bytes(b"same key")
-    fig2.Stages(tmp_path, {"grid": 1})
-    assert (tmp_path / "agent_evaluated.msgpack").exists()
+def test_eval_out_untouched_by_a_failed_check_and_foreign_files_refused(tmp_path, capsys):
+    """eval.py --out: a folder of ours is left as it was when an option fails its check; one holding a
+    file we did not write is refused, untouched (test_runfolder has the rules)."""
+    from semuav_jax.runfolder import RunFolder
 
-
-def test_temporary_files_of_a_killed_save_are_removed(tmp_path, capsys):
-    """Stages and the eval.py --out folder drop the temporary files a kill left, and nothing else."""
-    ours = ["agent_evaluated.msgpack.k1ll3d00.tmp", "key.json.k1ll3d00.tmp"]
-    others = ["notes.tmp", "agent_evaluated.msgpack.tmp", "x.txt.k1ll3d00.tmp"]
-    for n in ours + others:
-        (tmp_path / n).write_bytes(b"half")
-    fig2.Stages(tmp_path, {"grid": 1})
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*others, "key.json"])
+    ours = tmp_path / "ours"
+    f = RunFolder.claim(ours, "eval.py results")
+    f.write("fig2.md", b"x")
+    f.release()
+    before = sorted(p.name for p in ours.iterdir())
+    code, _ = _eval_main(capsys, "--out", str(ours), "--agent", str(tmp_path / "none"))  # stops at the missing agent
+    assert code == 2 and sorted(p.name for p in ours.iterdir()) == before
     out = tmp_path / "o"
     out.mkdir()
-    (out / "fig2.json.k1ll3d00.tmp").write_bytes(b"half")
     (out / "mine.txt").write_text("kept")
-    code, _ = _eval_main(capsys, "--out", str(out), "--agent", str(tmp_path / "none"))  # stops at the missing agent
-    assert code == 2 and sorted(p.name for p in out.iterdir()) == ["mine.txt"]
+    code, err = _eval_main(capsys, "--quick", "--out", str(out))
+    assert code == 2 and "did not write" in err and sorted(p.name for p in out.iterdir()) == ["mine.txt"]
 
 
 @pytest.mark.slow

@@ -18,6 +18,7 @@ from semuav_jax import io
 from semuav_jax.jscc import data
 from semuav_jax.jscc import train as train_mod
 from semuav_jax.jscc.__main__ import main
+from semuav_jax.runfolder import MARKER
 from semuav_jax.jscc.train import (CKPT_FILE, CONFIG_FILE, TrainConfig, load_checkpoint, load_config,
                                    make_optimizer, train)
 
@@ -138,7 +139,7 @@ def test_checkpoint_is_replaced_only_with_overwrite(tmp_path, capsys, monkeypatc
     _, _, step, history = _saved(out)
     assert cfg == CFG and step == 2
     assert len(history) == 1  # logged at step 2 only: a new run, not the step-1 one continued
-    assert sorted(p.name for p in out.iterdir()) == sorted([CKPT_FILE, CONFIG_FILE, "notes.txt"])
+    assert sorted(p.name for p in out.iterdir()) == sorted([MARKER, CKPT_FILE, CONFIG_FILE, "notes.txt"])
     assert main(["train", "--out", str(out), "--resume", "--steps", "2"]) == 0  # options as saved: no clash
 
 
@@ -168,7 +169,7 @@ def test_next_run_removes_temp_files_of_a_killed_save(tmp_path, monkeypatch, how
         (out / n).write_text("not ours")
     train(CFG, PHOTOS, out=out, progress=False, log_every=1, **{how: True})
     assert _saved(out)[2] == 2
-    assert sorted(p.name for p in out.iterdir()) == sorted([CKPT_FILE, CONFIG_FILE, *others])
+    assert sorted(p.name for p in out.iterdir()) == sorted([MARKER, CKPT_FILE, CONFIG_FILE, *others])
 
 
 @pytest.mark.parametrize("args, msg", [
@@ -241,7 +242,7 @@ def test_kill_at_any_write_of_a_save_resumes_to_the_uninterrupted_run(tmp_path, 
         train(KILL_CFG, PHOTOS, out=out, resume=n > 1, progress=False, log_every=1)
         _same_state(_saved(out, KILL_CFG), ref)
         assert load_config(out)[0] == KILL_CFG
-        assert sorted(p.name for p in out.iterdir()) == [CKPT_FILE, CONFIG_FILE]  # the temporary file removed
+        assert sorted(p.name for p in out.iterdir()) == sorted([MARKER, CKPT_FILE, CONFIG_FILE])  # the temporary file removed
 
 
 @pytest.mark.slow

@@ -128,22 +128,29 @@ def test_resume_refuses_other_options_and_broken_checkpoints(curves_file, tmp_pa
     (out / "config.json").write_text(json.dumps(cfg))
     (out / "checkpoint.msgpack").write_bytes(ckpt)
     res = _train("--out", str(out), "--resume")
-    assert res.returncode == 2 and "not this run's checkpoint" in res.stderr and "Traceback" not in res.stderr
+    assert res.returncode == 2 and "was edited after the run wrote it" in res.stderr and "Traceback" not in res.stderr
 
 
 @pytest.mark.slow
 def test_overwrite_deletes_only_run_files(curves_file, tmp_path):
+    """--overwrite: a folder without our marker is refused even when it holds only run-file names
+    (they may be the user's); in a run folder of ours only the files its manifest lists go."""
     out = tmp_path / "r"
     out.mkdir()
     (out / "config.json").write_text("{}")
     (out / "notes.txt").write_text("mine")
     res = _train("--curves", curves_file, "--out", str(out), *TINY, "--overwrite")
-    assert res.returncode == 2 and "notes.txt" in res.stderr
+    assert res.returncode == 2 and "did not write" in res.stderr and "notes.txt" in res.stderr
     assert (out / "notes.txt").read_text() == "mine" and (out / "config.json").read_text() == "{}"
     (out / "notes.txt").unlink()
+    res = _train("--curves", curves_file, "--out", str(out), *TINY, "--overwrite")
+    assert res.returncode == 2 and (out / "config.json").read_text() == "{}"
+    (out / "config.json").unlink()
+    assert _train("--curves", curves_file, "--out", str(out), *TINY[:-6], "--eval-episodes", "0").returncode == 0
+    (out / "notes.txt").write_text("mine")
     res = _train("--curves", curves_file, "--out", str(out), *TINY[:-6], "--eval-episodes", "0", "--overwrite")
     assert res.returncode == 0, res.stderr
-    assert (out / "model.msgpack").is_file()
+    assert (out / "model.msgpack").is_file() and (out / "notes.txt").read_text() == "mine"
 
 
 @pytest.mark.parametrize(
@@ -152,7 +159,7 @@ def test_overwrite_deletes_only_run_files(curves_file, tmp_path):
         (["--seeds", "0"], "--seeds"),
         (["--total-steps", "3"], "less than one chunk"),
         (["--scenario", "moon"], "invalid choice"),
-        (["--bandwidth", "-5"], "B must be > 0"),
+        (["--bandwidth", "-5"], "bandwidth must be a finite number > 0"),
         (["--curves", "/nonexistent.npz"], "not found"),
         (["--lr", "nan"], "lr must be finite and > 0"),
         (["--lr", "inf"], "lr must be finite and > 0"),

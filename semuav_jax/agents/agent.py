@@ -22,7 +22,7 @@ from flax import serialization
 
 from semuav_jax.agents.ddqn import DDQNConfig, QNetwork, agent_input, command, q_network
 from semuav_jax.agents.evaluate import seed_metrics
-from semuav_jax.agents.runs import load_run, run_params, shipped_folder
+from semuav_jax.agents.runs import check_weights, load_run, run_params, shipped_folder
 from semuav_jax.io import atomic_write
 from semuav_jax.keys import TEST_SEED, episode_keys
 from semuav_jax.params import EnvParams
@@ -56,7 +56,7 @@ class Agent:
     def from_run(cls, folder, seed: int = 0) -> "Agent":
         """Seed ``seed`` of a finished ``train.py`` run folder."""
         run, _, nets = load_run(folder)
-        if not 0 <= seed < run["seeds"]:
+        if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or not 0 <= seed < run["seeds"]:
             raise ValueError(f"{folder} has seeds 0..{run['seeds'] - 1}, got seed={seed}")
         return cls(run, jax.tree.map(lambda w: jnp.asarray(w[seed]), nets))
 
@@ -72,15 +72,18 @@ class Agent:
 
     @classmethod
     def load(cls, path) -> "Agent":
-        """The agent saved by :meth:`save`; ValueError (one line) for any other file."""
+        """The agent saved by :meth:`save`; ValueError (one line) for any other file, and for one
+        whose weights do not match its run description's network or are not finite."""
         try:
             blob = serialization.msgpack_restore(Path(path).read_bytes())
             assert isinstance(blob, dict) and blob.get("format") == FORMAT
             run = json.loads(blob["run"])
+            assert isinstance(run, dict) and "weights" in blob
         except FileNotFoundError:
             raise
         except Exception:
             raise ValueError(f"{path} is not a semuav-jax agent file (saved by Agent.save)") from None
+        check_weights(run, blob["weights"], path)
         return cls(run, jax.tree.map(jnp.asarray, blob["weights"]))
 
     def q_values(self, state, params: EnvParams | None = None):
@@ -100,8 +103,12 @@ def evaluate(agent: Agent, params: EnvParams | None = None, episodes: int = 1000
     {metric: (mean, 95 % half-width)} for mean_psnr, coverage, shield_share (t intervals) and
     arrived (mean, Wilson interval)."""
     params = agent.params if params is None else params
-    if episodes < 2:
-        raise ValueError(f"episodes must be >= 2, got {episodes}")
+    if not isinstance(episodes, (int, np.integer)) or isinstance(episodes, bool) or episodes < 2:
+        raise ValueError(f"episodes must be an integer >= 2, got {episodes!r}")
+    if params.N != agent.params.N:
+        raise ValueError(f"the agent was trained with N = {agent.params.N} devices; params has N = {params.N}")
+    if not all(np.isfinite(np.asarray(w)).all() for w in jax.tree.leaves(agent.weights)):
+        raise ValueError("the agent's weights are not finite (NaN or inf): nothing to evaluate")
     nets = jax.tree.map(lambda w: w[None], agent.weights)
     m = seed_metrics(agent.network, nets, agent.config, episode_keys(seed, episodes), params, (params.B,))
     out = {k: mean_ci(m[k][0, 0]) for k in ("mean_psnr", "coverage", "shield_share")}

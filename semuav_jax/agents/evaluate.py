@@ -59,20 +59,27 @@ def evaluate_agent(network, net_params, config: DDQNConfig, keys, params: EnvPar
     return (metrics, jax.tree.map(np.asarray, tr)) if trace else metrics
 
 
+MAX_RUNS = 2 ** 16  # episodes (seeds x bandwidths x layouts) in one compiled evaluation
+
+
 def seed_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams, bandwidths) -> dict:
     """Per-episode metrics (seeds, len(bandwidths), E) of the greedy policy of every seed of ``nets``
     (weights with a leading seed axis) at every B, in one jitted program vmapped over seeds and B
-    and sharded over every device of every process."""
+    and sharded over every device of every process; run in chunks of episodes so that one program
+    holds at most ``MAX_RUNS`` episodes (about 4 kB of device memory each)."""
     validate_params(params)
     if not all(0 < b < float("inf") for b in np.asarray(bandwidths, np.float64).ravel()):
         raise ValueError(f"bandwidths must be finite and > 0 Hz, got {bandwidths}")
-    E = len(keys)
-    skeys = shard_episodes(keys)
     policy = greedy_policy(network, config)
 
     def at(net, b, k):  # the keys are an argument: a jit may not close over another process's shards
         return rollout(policy, k, params.replace(B=b), agent_state(net), state_axes=None)[0]
 
-    out = jax.jit(jax.vmap(jax.vmap(at, (None, 0, None)), (0, None, None)))(nets, jnp.asarray(bandwidths, jnp.float32),
-                                                                            skeys)
-    return {k: v[..., :E] for k, v in gather(out).items()}
+    run = jax.jit(jax.vmap(jax.vmap(at, (None, 0, None)), (0, None, None)))
+    B = jnp.asarray(bandwidths, jnp.float32)
+    chunk = max(1, MAX_RUNS // (jax.tree.leaves(nets)[0].shape[0] * max(B.size, 1)))
+    parts = []
+    for i in range(0, len(keys), chunk):
+        part = keys[i:i + chunk]
+        parts.append({k: v[..., :len(part)] for k, v in gather(run(nets, B, shard_episodes(part))).items()})
+    return {k: np.concatenate([p[k] for p in parts], axis=-1) for k in parts[0]}

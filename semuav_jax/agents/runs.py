@@ -41,8 +41,40 @@ def finished(folder) -> bool:
     return (folder / CONFIG_FILE).is_file() and (folder / MODEL_FILE).is_file()
 
 
+def check_weights(run: dict, weights, where, seeds: int | None = None) -> None:
+    """ValueError (one line) unless ``weights`` are finite arrays with the shapes of the Q-network
+    of ``run`` (config.json's scenario and 'ddqn' block), with a leading axis of ``seeds`` when given."""
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    from semuav_jax.agents.ddqn import input_size, q_network
+
+    config = ddqn_config(run, where)
+    try:
+        params = run_params(run)
+    except (ValueError, TypeError, KeyError, FileNotFoundError) as e:
+        raise ValueError(f"{where}: its run description does not build its scenario ({e})") from None
+    net = q_network(params, config)
+    want = jax.eval_shape(net.init, jax.random.key(0), jnp.zeros((input_size(params, config),), jnp.float32))
+    lead = () if seeds is None else (seeds,)
+    shapes = lambda tree: {"/".join(str(getattr(k, "key", k)) for k in path): np.shape(x)
+                           for path, x in jax.tree_util.tree_flatten_with_path(tree)[0]}
+    got, want = shapes(weights), {k: lead + v for k, v in shapes(want).items()}
+    if got != want:
+        bad = [f"{k} {got.get(k, 'missing')} (expected {want[k]})" for k in want if got.get(k) != want[k]]
+        bad += [f"{k} (not a layer of it)" for k in got if k not in want]
+        raise ValueError(f"{where}: its weights do not match its config (hidden {list(config.hidden)}, "
+                         f"{net.num_actions} actions): {', '.join(bad[:3])}")
+    if not all(np.issubdtype(np.asarray(w).dtype, np.floating) for w in jax.tree.leaves(weights)):
+        raise ValueError(f"{where}: its weights are not float arrays")
+    if not all(np.isfinite(np.asarray(w)).all() for w in jax.tree.leaves(weights)):
+        raise ValueError(f"{where}: its weights are not finite (NaN or inf: the training diverged)")
+
+
 def load_run(folder):
-    """(run description, DDQNConfig, weights with a leading seed axis) of a finished run folder."""
+    """(run description, DDQNConfig, weights with a leading seed axis) of a finished run folder,
+    its weights checked against its config and finite."""
     folder = Path(folder)
     if not finished(folder):
         raise ValueError(f"{folder} is not a finished train.py run (needs {CONFIG_FILE} and {MODEL_FILE})")
@@ -50,7 +82,14 @@ def load_run(folder):
         run = json.loads((folder / CONFIG_FILE).read_text())
     except ValueError as e:
         raise ValueError(f"{folder / CONFIG_FILE} is not a train.py run config ({e})") from None
-    return run, ddqn_config(run, folder / CONFIG_FILE), serialization.msgpack_restore((folder / MODEL_FILE).read_bytes())
+    config = ddqn_config(run, folder / CONFIG_FILE)
+    try:
+        nets = serialization.msgpack_restore((folder / MODEL_FILE).read_bytes())
+    except Exception as e:  # noqa: BLE001 - msgpack raises any kind for a file that is not one
+        raise ValueError(f"{folder / MODEL_FILE} is not a weights file ({type(e).__name__})") from None
+    seeds = run.get("seeds") if isinstance(run, dict) else None
+    check_weights(run, nets, folder / MODEL_FILE, seeds if isinstance(seeds, int) and not isinstance(seeds, bool) else None)
+    return run, config, nets
 
 
 def ddqn_config(run, where) -> DDQNConfig:

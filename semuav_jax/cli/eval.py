@@ -19,7 +19,6 @@ from pathlib import Path
 from semuav_jax import distributed
 from semuav_jax.cli import interruptible
 
-
 OUT_FILES = ("fig2.json", "fig2.md", "fig2a.png", "fig2b.png", "fig2c.png")  # what eval.py writes in --out
 
 
@@ -49,8 +48,9 @@ def parse_args(argv=None):
     distributed.add_options(p)
     a = p.parse_args(argv)
     base = QUICK if a.quick else FULL
-    a.grid = {"bandwidths": tuple(a.bandwidths or base["bandwidths"]), "velocities": tuple(a.velocities or base["velocities"]),
-              "layouts": a.layouts or base["layouts"], "validation_layouts": a.validation_layouts or base["validation_layouts"]}
+    pick = lambda name: base[name] if getattr(a, name) is None else getattr(a, name)  # 0 is refused, not a default
+    a.grid = {"bandwidths": tuple(pick("bandwidths")), "velocities": tuple(pick("velocities")),
+              "layouts": pick("layouts"), "validation_layouts": pick("validation_layouts")}
     if a.grid["layouts"] < 2 or a.grid["validation_layouts"] < 1 or a.workers < 1:
         raise UsageError("--layouts must be >= 2, --validation-layouts and --workers >= 1")
     for name, xs in (("bandwidths", a.grid["bandwidths"]), ("velocities", a.grid["velocities"])):
@@ -65,17 +65,32 @@ def parse_args(argv=None):
     if a.animate is not None:
         if not a.animate.endswith(".gif"):
             raise UsageError(f"--animate must name a .gif file, got {a.animate!r}")
-        return a
-    out = Path(a.out)
-    if (out / "fig2.json").exists() and not a.overwrite:
-        raise UsageError(f"{out} already holds results; pass --overwrite to replace them")
     return a
+
+
+def claim_out(args):
+    """The --out folder claimed (``semuav_jax.runfolder``): ours or new, locked; its results removed
+    with --overwrite (its saved steps stay: they are keyed), refused without."""
+    from semuav_jax.runfolder import RunFolder
+
+    if not distributed.is_main():  # process 0 claims (a shared folder); the others read its saved steps
+        distributed.barrier("results folder claimed")
+        return RunFolder.view(args.out)
+    folder = RunFolder.claim(args.out, "eval.py results")
+    if any(n in folder.files for n in OUT_FILES):
+        if not args.overwrite:
+            folder.release()
+            raise UsageError(f"{args.out} already holds results; pass --overwrite to replace them")
+        for n in OUT_FILES:
+            folder.remove(n)
+    distributed.barrier("results folder claimed")
+    return folder
 
 
 def agent_folder(args, out: Path) -> Path:
     """The run folder of the agent: the shipped one, --agent, or OUT/agent trained (or resumed) here."""
-    from semuav_jax.cli import train
     from semuav_jax.agents.runs import CKPT_FILE, finished, shipped_folder
+    from semuav_jax.cli import train
     from semuav_jax.sharding import agree
 
     if args.quick:
@@ -107,6 +122,32 @@ def _main(argv=None) -> int:
     if args.animate:
         return _animate(args)
 
+    from baselines.report import check_bandwidth
+    from semuav_jax.agents.runs import load_run
+    from semuav_jax.agents.scenarios import scenario_params
+    from semuav_jax.curves import load_curves
+    from semuav_jax.io import check_writable_folder
+
+    t0 = time.time()
+    try:
+        check_writable_folder(args.out)  # every path checked before any computation or write
+        curves = load_curves(args.curves) if args.curves else None
+        base = scenario_params("random", curves, reward_mode="gain")
+        for b in args.grid["bandwidths"]:
+            check_bandwidth(base, b, args.grid["velocities"])
+        if args.agent:
+            load_run(args.agent)
+        results = claim_out(args)
+    except (UsageError, ValueError, FileNotFoundError, OSError) as e:
+        print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
+        return 2
+    try:
+        return _evaluate(args, results, curves, t0)
+    finally:
+        results.release()
+
+
+def _evaluate(args, results, curves, t0) -> int:
     import jax
     from tqdm import tqdm
 
@@ -114,21 +155,13 @@ def _main(argv=None) -> int:
     from semuav_jax.agents.ddqn import q_network
     from semuav_jax.agents.runs import MODEL_FILE, load_run
     from semuav_jax.agents.scenarios import scenario_params
-    from semuav_jax.curves import load_curves
     from semuav_jax.experiments import fig2
-    from semuav_jax.io import atomic_write, check_writable_folder, remove_stale_temps
     from semuav_jax.provenance import file_hash, provenance
 
-    out = Path(args.out)
-    t0 = time.time()
+    out = results.path
     try:
-        check_writable_folder(out)
-        if distributed.is_main():
-            out.mkdir(parents=True, exist_ok=True)
-            remove_stale_temps(out, OUT_FILES)
         folder = agent_folder(args, out)
         run, config, nets = load_run(folder)
-        curves = load_curves(args.curves) if args.curves else None
         params = scenario_params("random", curves, reward_mode=run.get("reward_mode", "gain"), B=25e3)
         fixed = scenario_params("fixed", curves, reward_mode=run.get("reward_mode", "gain"), B=25e3)
     except (UsageError, ValueError, FileNotFoundError, OSError) as e:
@@ -144,7 +177,7 @@ def _main(argv=None) -> int:
             bar.write(msg)
             bar.update(1)
         # each step is saved in OUT/stages: an interrupted run continues at the first step not done
-        stages = fig2.Stages(out / "stages", key, log)
+        stages = fig2.Stages(results, key, log, note=bar.write)
         r = fig2.run(network, nets, config, params, fixed, args.grid, args.workers, stages=stages)
     r.update(agent=str(folder), agent_command=run.get("command"), train_s=train_s, eval_s=time.time() - t0 - train_s,
              devices=jax.device_count(), grid={k: list(v) if isinstance(v, tuple) else v for k, v in args.grid.items()},
@@ -152,12 +185,12 @@ def _main(argv=None) -> int:
     r["paths"] = {k: {m: (v.tolist() if hasattr(v, "tolist") else v) for m, v in p.items()} for k, p in r["paths"].items()}
     if not distributed.is_main():  # process 0 alone writes the results
         return 0
-    atomic_write(out / "fig2.json", json.dumps(r, indent=2).encode())
+    results.write("fig2.json", json.dumps(r, indent=2).encode())
     md = fig2.markdown(r)
-    atomic_write(out / "fig2.md", (md + "\n").encode())
-    figures.fig2a(r, out / "fig2a.png")
-    figures.fig2b(r, out / "fig2b.png")
-    figures.fig2c(r["paths"], fixed.replace(B=fig2.PANEL_B), out / "fig2c.png")
+    results.write("fig2.md", (md + "\n").encode())
+    figures.fig2a(r, results.record("fig2a.png"))
+    figures.fig2b(r, results.record("fig2b.png"))
+    figures.fig2c(r["paths"], fixed.replace(B=fig2.PANEL_B), results.record("fig2c.png"))
     print(md)
     print(f"wrote {out}/fig2a.png fig2b.png fig2c.png fig2.json fig2.md in {time.time() - t0:.0f} s")
     return 0

@@ -12,28 +12,37 @@ from __future__ import annotations
 import argparse
 import csv
 import io
-import json
 import sys
 import time
 from pathlib import Path
 
 from semuav_jax import distributed
+from semuav_jax.agents.runs import (
+    CKPT_FILE,
+    CONFIG_FILE,
+    CURVE_FILE,
+    EVAL_FILE,
+    EVAL_MD,
+    METRICS_FILE,
+    MODEL_FILE,
+    ddqn_config,
+)
 from semuav_jax.cli import interruptible
+from semuav_jax.cli.train_folder import (
+    INT_COLUMNS,
+    NONE,
+    RUN_OPTIONS,
+    SCENARIO,
+    UsageError,
+    check_run,
+    prepare_folder,
+    read_metrics,
+    saved_config,
+)
+from semuav_jax.runfolder import RunFolder
 
-from semuav_jax.agents.runs import (CKPT_FILE, CONFIG_FILE, CURVE_FILE, METRICS_FILE, MODEL_FILE, RUN_FILES, clear_run,
-                                    ddqn_config)
-from semuav_jax.io import atomic_write, check_writable_folder, remove_stale_temps
-
-SCENARIO = {"scenario": "random", "reward_mode": "gain", "bandwidth": 25e3, "kappa_c": 10.0, "r_g": 0.0}
-RUN_OPTIONS = {"seeds": (3, "independent agents trained in one program"), "seed": (0, "base random seed"),
-               "segments": (50, "host-level segments (progress + checkpoint each)")}
-INT_COLUMNS = ("seed", "chunk", "env_steps", "episodes")
 METRIC_COLUMNS = ("seed", "chunk", "env_steps", "epsilon", "episodes", "loss", "mean_psnr", "return", "arrived",
                   "coverage", "shield_share")
-
-
-class UsageError(Exception):
-    """A bad option or run folder: reported as one line, exit code 2."""
 
 
 def _option_type(default):
@@ -51,9 +60,6 @@ def _boolean(text: str) -> bool:
     if text.lower() not in ("true", "false"):
         raise ValueError(text)
     return text.lower() == "true"
-
-
-NONE = "none"  # an option set to none (e.g. --shield-margin none), unlike one not given (None)
 
 
 def _none_or(kind):
@@ -112,8 +118,8 @@ def parse_args(argv=None):
     for name in ("seeds", "segments", "max_segments", "workers", "validation_episodes"):
         if getattr(args, name) is not None and getattr(args, name) < 1:
             raise UsageError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
-    if args.eval_episodes < 0:
-        raise UsageError(f"--eval-episodes must be >= 0, got {args.eval_episodes}")
+    if args.eval_episodes < 0 or args.eval_episodes == 1:
+        raise UsageError(f"--eval-episodes must be 0 (no comparison) or >= 2 (its intervals need two), got {args.eval_episodes}")
     return args
 
 
@@ -126,6 +132,9 @@ def run_config(args) -> dict:
     preset = PRESETS[args.preset]
     names = {f.name for f in dataclasses.fields(DDQNConfig)}
     given = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
+    for k, v in given.items():
+        if isinstance(v, list) and NONE in v and len(v) > 1:
+            raise UsageError(f"--{k.replace('_', '-')}: give either none or numbers, got {' '.join(map(str, v))}")
     given = {k: None if v == NONE or v == [NONE] else tuple(v) if isinstance(v, list) else v for k, v in given.items()}
     cfg = preset_config(args.preset, **given)
     scenario = {k: getattr(args, k) if getattr(args, k) is not None else preset.get(k, v) for k, v in SCENARIO.items()}
@@ -133,66 +142,13 @@ def run_config(args) -> dict:
     return {"preset": args.preset, **scenario, **run, "curves": args.curves, "command": args.command, "ddqn": cfg.to_dict()}
 
 
-def resume_clashes(args, saved: dict) -> list[str]:
-    """The options given with --resume whose value differs from the saved run's, as 'option value (saved x)'."""
-    import dataclasses
-
-    from semuav_jax.agents.ddqn import DDQNConfig
-
-    ddqn = {f.name for f in dataclasses.fields(DDQNConfig)}
-    norm = lambda x: json.loads(json.dumps(x))
-    clashes = []
-    for name in (*ddqn, *SCENARIO, *RUN_OPTIONS, "curves"):
-        new = getattr(args, name)  # compared as given: not checked against the other options (they are the saved ones)
-        if new is None:
-            continue
-        new = None if new == NONE or new == [NONE] else new
-        old = saved["ddqn"].get(name) if name in ddqn else saved.get(name)
-        if norm(new) != norm(old):
-            clashes.append(f"--{name.replace('_', '-')} {new} (saved {old})")
-    if args.preset != "default" and args.preset != saved.get("preset"):
-        clashes.append(f"--preset {args.preset} (saved {saved.get('preset')})")
-    return clashes
-
-
 def load_run_config(args) -> dict:
     """The run's config: read back from the run folder on --resume, else built from the options."""
-    out = Path(args.out)
     if args.resume:
-        if not (out / CONFIG_FILE).is_file() or not (out / CKPT_FILE).is_file():
-            raise UsageError(f"--resume: no {CONFIG_FILE} and {CKPT_FILE} in {out}")
-        try:
-            saved = json.loads((out / CONFIG_FILE).read_text())
-        except ValueError:
-            raise UsageError(f"--resume: {out / CONFIG_FILE} is not a train.py run config") from None
-        needed = ("ddqn", "scenario", "reward_mode", "bandwidth", "kappa_c", *RUN_OPTIONS)
-        missing = [k for k in needed if not isinstance(saved, dict) or k not in saved]
-        if missing:
-            raise UsageError(f"--resume: {out / CONFIG_FILE} is not a train.py run config (no {', '.join(map(repr, missing))})")
-        ddqn_config(saved, out / CONFIG_FILE)  # a one-line error for a block DDQNConfig does not take
-        clashes = resume_clashes(args, saved)
-        if clashes:
-            raise UsageError(f"--resume continues the run saved in {out}, whose config differs: {', '.join(clashes)}")
-        return saved
-    return run_config(args)
-
-
-def prepare_folder(args, cfg: dict) -> None:
-    """Create the run folder and write config.json; refuse a non-empty one without --resume / --overwrite
-    (which deletes only a run's own files)."""
-    out = Path(args.out)
-    check_writable_folder(out)
-    if args.resume:
-        remove_stale_temps(out, RUN_FILES)
-        return
-    if out.exists() and any(out.iterdir()):
-        if not args.overwrite:
-            raise UsageError(
-                f"run folder {out} exists and is not empty; pass --resume to continue it or --overwrite to replace it"
-            )
-        clear_run(out)
-    out.mkdir(parents=True, exist_ok=True)
-    atomic_write(out / CONFIG_FILE, json.dumps(cfg, indent=2).encode())
+        return saved_config(args)
+    cfg = run_config(args)
+    check_run(cfg, "")
+    return cfg
 
 
 def plot_curves(rows, path: Path, reference: dict | None = None) -> None:
@@ -224,7 +180,8 @@ def segment_lengths(num_chunks: int, segments: int, done: int):
 
 
 def main(argv=None) -> int:
-    return interruptible(lambda a: distributed.guarded(_main, a), argv, "the run folder is consistent: continue with --resume")
+    return interruptible(lambda a: distributed.guarded(_main, a), argv, "the run folder is consistent: continue with "
+                         "--resume (before its first checkpoint, --resume or the same command starts it again)")
 
 
 def _main(argv=None) -> int:
@@ -236,12 +193,6 @@ def _main(argv=None) -> int:
         print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
         return 2
 
-    import jax
-    import numpy as np
-    from flax import serialization
-    from tqdm import tqdm
-
-    from semuav_jax.agents.ddqn import make_train
     from semuav_jax.agents.runs import run_params
 
     out = Path(args.out)
@@ -249,11 +200,29 @@ def _main(argv=None) -> int:
         params = run_params(cfg)
         config = ddqn_config(cfg, out / CONFIG_FILE)
         if distributed.is_main():  # of several processes, process 0 writes the run folder
-            prepare_folder(args, cfg)
+            folder = prepare_folder(args, cfg)
+            distributed.barrier("run folder claimed")
+        else:
+            distributed.barrier("run folder claimed")
+            folder = RunFolder.view(args.out)
     except (UsageError, ValueError, FileNotFoundError) as e:
         print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
         return 2
+    try:
+        return _train(args, cfg, params, config, folder)
+    finally:
+        folder.release()
 
+
+def _train(args, cfg, params, config, folder) -> int:
+    import jax
+    import numpy as np
+    from flax import serialization
+    from tqdm import tqdm
+
+    from semuav_jax.agents.ddqn import make_train
+
+    out = folder.path
     bar = None
 
     def progress(chunk):  # from inside the compiled segment, once per seed and chunk
@@ -264,26 +233,21 @@ def _main(argv=None) -> int:
     keys = jax.random.split(jax.random.PRNGKey(cfg["seed"]), cfg["seeds"])
     init = jax.jit(jax.vmap(trainer.init))
     template = jax.eval_shape(init, keys)
-    if args.resume:
+    state, rows = None, []
+    if args.resume and not (out / CKPT_FILE).is_file():  # stopped before its first checkpoint
+        print(f"{out} has no checkpoint yet: starting its run from chunk 0")
+    elif args.resume:
         try:
             state = serialization.from_bytes(template, (out / CKPT_FILE).read_bytes())
             if jax.tree.structure(state) != jax.tree.structure(template) or any(
                     np.shape(a) != b.shape for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(template))):
                 raise ValueError("its arrays do not match config.json")
-        except Exception as e:
-            print(f"{Path(sys.argv[0]).name}: error: --resume: {out / CKPT_FILE} is unreadable or not this run's checkpoint ({e})",
-                  file=sys.stderr)
+            rows = read_metrics(out, int(np.asarray(state.chunk)[0]))
+        except Exception as e:  # noqa: BLE001 - flax raises any kind for a file that is not this checkpoint
+            text = e if isinstance(e, UsageError) else f"--resume: {out / CKPT_FILE} is unreadable or not this run's checkpoint ({e})"
+            print(f"{Path(sys.argv[0]).name}: error: {text}", file=sys.stderr)
             return 2
-        at = int(np.asarray(state.chunk)[0])
-        rows = []
-        if (out / METRICS_FILE).is_file():  # written before the checkpoint: drop rows of chunks it lacks
-            with open(out / METRICS_FILE, newline="") as f:
-                rows = [{k: int(float(v)) if k in INT_COLUMNS else float(v) for k, v in r.items()}
-                        for r in csv.DictReader(f)]
-            rows = [r for r in rows if r["chunk"] <= at]
         print(f"resuming {out} at chunk {int(np.asarray(state.chunk)[0])} / {config.num_chunks}")
-    else:
-        state, rows = None, []
 
     t0 = time.time()
     if state is None:
@@ -296,6 +260,13 @@ def _main(argv=None) -> int:
             runs[n] = jax.jit(jax.vmap(lambda s, n=n: trainer.run(s, n)))
         state, metrics = runs[n](state)
         metrics = jax.tree.map(np.asarray, metrics)
+        if not np.isfinite(metrics["loss"]).all() or not all(np.isfinite(w).all() for w in jax.tree.leaves(state.params)):
+            bar.close()
+            kept = f"keeps its checkpoint at chunk {done}" if (out / CKPT_FILE).is_file() else "has no checkpoint"
+            print(f"{Path(sys.argv[0]).name}: error: training diverged (non-finite loss or weights) in chunks "
+                  f"{done + 1}..{done + n}; {out} {kept} and no model: start again with other options (e.g. a smaller "
+                  "--lr) and --overwrite", file=sys.stderr)
+            return 2
         for s in range(cfg["seeds"]):
             for c in range(n):
                 rows.append({"seed": s, "chunk": done + c + 1, **{k: int(metrics[k][s, c]) if k in INT_COLUMNS
@@ -307,9 +278,9 @@ def _main(argv=None) -> int:
         w = csv.DictWriter(text, METRIC_COLUMNS)
         w.writeheader()
         w.writerows({k: r[k] for k in METRIC_COLUMNS} for r in rows)
-        atomic_write(out / METRICS_FILE, text.getvalue().encode())  # before the checkpoint: see resume
-        atomic_write(out / CKPT_FILE, serialization.to_bytes(state))
-        plot_curves(rows, out / CURVE_FILE)
+        folder.write(METRICS_FILE, text.getvalue().encode())  # before the checkpoint: see resume
+        folder.write(CKPT_FILE, serialization.to_bytes(state))
+        plot_curves(rows, folder.record(CURVE_FILE))
         bar.set_postfix(psnr=f"{metrics['mean_psnr'][:, -1].mean():.2f}", eps=f"{metrics['epsilon'][0, -1]:.2f}")
         bar.update(done - bar.n)  # the callbacks moved it within the segment
     bar.close()
@@ -317,8 +288,7 @@ def _main(argv=None) -> int:
         print(f"stopped at chunk {done} / {config.num_chunks}; continue with --resume --out {out}")
         return 0
     wall = time.time() - t0
-    if distributed.is_main():
-        atomic_write(out / MODEL_FILE, serialization.to_bytes(state.params))
+    folder.write(MODEL_FILE, serialization.to_bytes(state.params))  # process 0 alone writes (a view elsewhere)
     distributed.barrier("weights written")  # the evaluation below and eval.py read them in every process
     print(f"training: {config.num_chunks * config.steps_per_chunk * config.num_envs * cfg['seeds']:,} env steps "
           f"in {wall:.0f} s (this session)")
@@ -326,6 +296,7 @@ def _main(argv=None) -> int:
     if args.eval_episodes:
         from semuav_jax.experiments.learned import evaluate_run, markdown
 
+        folder.record(EVAL_FILE), folder.record(EVAL_MD)
         report = evaluate_run(out, args.eval_episodes, args.validation_episodes, args.workers, log=tqdm.write,
                               extra={"train_wall_s": wall})
         if not distributed.is_main():

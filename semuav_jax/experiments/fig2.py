@@ -13,13 +13,9 @@ transmitting and otherwise, dwell and symbols per served device, devices covered
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
 import jax
 import jax.numpy as jnp
 import numpy as np
-from flax import serialization
 
 from baselines import DEFAULT_V_B, init_state, receding, sweep, tsp_ranks
 from baselines.dwell import DWELL_POLICIES, init_dwell
@@ -28,13 +24,12 @@ from baselines.policies import POLICIES
 from baselines.report import flights, tune
 from semuav_jax.agents.ddqn import DDQNConfig
 from semuav_jax.agents.evaluate import agent_state, greedy_policy, seed_metrics
-from semuav_jax.distributed import is_main
-from semuav_jax.io import atomic_write
+from semuav_jax.experiments.stages import Stages
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams
 from semuav_jax.rollout import rollout
-from semuav_jax.sharding import agree, split_hosts
-from semuav_jax.stats import mean_ci
+from semuav_jax.sharding import split_hosts
+from semuav_jax.stats import mean_ci, pm
 
 BANDWIDTHS = (5e3, 10e3, 15e3, 20e3, 25e3, 30e3, 35e3, 40e3)
 VELOCITIES = (4.0, 6.0, DEFAULT_V_B, 11.0, 14.0, 17.0, 20.0, 24.0)
@@ -108,53 +103,6 @@ def path(trace: dict, metrics: dict, i: int, params: EnvParams) -> dict:
     v = np.concatenate([[0.0], np.linalg.norm(trace["v"][i, :slots], axis=-1)])
     dwell = trace["x"][i, :slots].sum(0) * float(params.tau)
     return {"q": q, "speed": v, "dwell_s": dwell, **{k: float(np.asarray(m)[i]) for k, m in metrics.items()}}
-
-
-class Stages:
-    """The steps of :func:`run`, each logged and saved to ``folder/<name>.msgpack`` when done (``folder`` None:
-    nothing saved), so an interrupted run continues at the first step not done. ``key`` (JSON-able:
-    grid, agent, curves) is kept beside them; saved steps of another key are deleted first. Of several
-    processes, process 0 saves; a step is loaded only if every process finds it."""
-
-    def __init__(self, folder, key: dict, log=print):
-        self.folder, self.log = (None if folder is None else Path(folder)), log
-        self.writer = is_main()  # in a run of several processes, process 0 writes and every process reads
-        if self.folder is None or not self.writer:
-            return
-        self.folder.mkdir(parents=True, exist_ok=True)
-        for t in self.folder.glob("*.????????.tmp"):  # atomic_write's temporary files, left by a kill
-            if t.name.startswith("key.json.") or t.name.split(".")[-3] == "msgpack":
-                t.unlink()
-        stamp = self.folder / "key.json"
-        text = json.dumps(key, sort_keys=True, default=str)
-        if not stamp.is_file() or stamp.read_text() != text:
-            for f in self.folder.glob("*.msgpack"):
-                f.unlink()
-            atomic_write(stamp, text.encode())
-
-    def __call__(self, name: str, compute, save=lambda x: x, load=lambda x: x, describe=lambda out: ""):
-        path = None if self.folder is None else self.folder / (name.split(" (")[0].replace(" ", "_") + ".msgpack")
-        if path is not None and agree(path.is_file()):  # a step every process can read (a shared folder)
-            out = load(serialization.msgpack_restore(path.read_bytes()))
-            self.log(f"{name}{describe(out)} (saved before)")
-            return out
-        out = compute()
-        if path is not None and self.writer:
-            atomic_write(path, serialization.msgpack_serialize(_packable(save(out))))
-        self.log(name + describe(out))
-        return out
-
-
-def _packable(x):
-    """x with tuples as lists and NumPy scalars as Python numbers (what msgpack takes); a restored
-    step compares equal in JSON."""
-    if isinstance(x, dict):
-        return {k: _packable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_packable(v) for v in x]
-    if isinstance(x, np.generic):
-        return x.item()
-    return np.asarray(x) if isinstance(x, jax.Array) else x
 
 
 def khz(b: float) -> str:
@@ -276,8 +224,8 @@ def markdown(r: dict) -> str:
              "|---" * (2 + len(refs) + len(margins)) + "|"]
     for row in r["panel_a"]:
         cells = [f"{row[n]['mean_psnr'][0]:.2f}" + (f" ({row[n]['v_b']:g} m/s)" if "v_b*" in n else "") for n in refs]
-        diffs = [f"{row[f'agent minus {n}'][0]:+.2f} ± {row[f'agent minus {n}'][1]:.2f}" for n in margins]
-        lines.append(f"| {row['B'] / 1e3:g} | {row['agent'][0]:.2f} ± {row['agent'][1]:.2f} | " + " | ".join(cells + diffs) + " |")
+        diffs = [f"{row[f'agent minus {n}'][0]:+.2f} {pm(row[f'agent minus {n}'][1])}" for n in margins]
+        lines.append(f"| {row['B'] / 1e3:g} | {row['agent'][0]:.2f} {pm(row['agent'][1])} | " + " | ".join(cells + diffs) + " |")
     lines += ["", "Arrival: " + ", ".join(f"{row['B'] / 1e3:g} kHz DDQN {100 * row['agent_arrived']:.1f} % "
                                          f"(shield {100 * row['agent_shield_share']:.1f} % of slots)" for row in r["panel_a"]), "",
               "| v_b (m/s), B = 25 kHz | " + " | ".join(f"{v:g}" for v in r["velocities"]) + " |",

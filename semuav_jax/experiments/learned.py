@@ -20,7 +20,7 @@ from semuav_jax.distributed import is_main
 from semuav_jax.experiments.fig2 import shared_plans
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams
-from semuav_jax.stats import mean_ci, wilson_interval
+from semuav_jax.stats import mean_ci, pm, wilson_interval
 
 REFERENCES = ("greedy v_b*", "tsp v_b*", "greedy-dwell", "tsp-dwell")  # the fixed rules, tuned: margins that must be positive
 MARGINS = (*REFERENCES, "planner", "exact planner")  # every reference the agent is compared with, paired
@@ -68,9 +68,9 @@ def compare(network, nets, config: DDQNConfig, params: EnvParams, bandwidths=BAN
         row["agent"]["shield_share"] = float(np.mean([s["shield_share"] for s in row["seeds"]]))
         rows.append(row)
         a = row["agent"]
-        log(f"B = {b / 1e3:g} kHz: agent {a['mean_psnr'][0]:.2f} ± {a['mean_psnr'][1]:.2f} dB over "
+        log(f"B = {b / 1e3:g} kHz: agent {a['mean_psnr'][0]:.2f} {pm(a['mean_psnr'][1])} dB over "
             f"{len(means)} seeds ({', '.join(f'{x:.2f}' for x in means)}); "
-            + ", ".join(f"{n} {a['minus ' + n][0]:+.2f} ± {a['minus ' + n][1]:.2f}" for n in MARGINS))
+            + ", ".join(f"{n} {a['minus ' + n][0]:+.2f} {pm(a['minus ' + n][1])}" for n in MARGINS))
     return {"episodes": episodes, "test_seed": TEST_SEED, "validation_seed": VALIDATION_SEED,
             "validation_episodes": validation_episodes, "tuning": tuned, "rows": rows}
 
@@ -86,8 +86,8 @@ def markdown(r: dict) -> str:
     ]
     for row in r["rows"]:
         a = row["agent"]
-        cells = [f"{a[f'minus {n}'][0]:+.2f} ± {a[f'minus {n}'][1]:.2f}" for n in MARGINS]
-        lines.append(f"| {row['B'] / 1e3:g} | {a['mean_psnr'][0]:.2f} ± {a['mean_psnr'][1]:.2f} | " + " | ".join(cells)
+        cells = [f"{a[f'minus {n}'][0]:+.2f} {pm(a[f'minus {n}'][1])}" for n in MARGINS]
+        lines.append(f"| {row['B'] / 1e3:g} | {a['mean_psnr'][0]:.2f} {pm(a['mean_psnr'][1])} | " + " | ".join(cells)
                      + f" | {100 * a['arrived']:.1f} % | {100 * a['shield_share']:.1f} % |")
     lines += ["", "Across seeds: mean of the seeds' means ± the t interval (95 %) over seeds.", "",
               f"| B (kHz) | seed | mean PSNR (dB) | {_header(MARGINS)} (paired 95 % CIs) | arrival "
@@ -110,14 +110,27 @@ def markdown(r: dict) -> str:
 
 def evaluate_run(folder, episodes: int = 1000, validation_episodes: int = 500, workers: int = 2, log=print,
                  extra: dict | None = None) -> dict:
-    """:func:`compare` for the seeds of a finished ``train.py`` run folder; writes its eval.json and eval.md."""
+    """:func:`compare` for the seeds of a finished ``train.py`` run folder; writes its eval.json and
+    eval.md (the folder claimed and locked meanwhile, ``semuav_jax.runfolder``)."""
+    from semuav_jax.agents.runs import RUN_FILES, load_run
+    from semuav_jax.runfolder import RunFolder
+
+    load_run(folder)  # a one-line error before anything is written into the folder
+    # of several processes, process 0 claims and writes; the others read (RunFolder.view)
+    run_folder = RunFolder.claim(folder, "train.py run", adopt=RUN_FILES) if is_main() else RunFolder.view(folder)
+    try:
+        return _evaluate_run(run_folder, episodes, validation_episodes, workers, log, extra)
+    finally:
+        run_folder.release()
+
+
+def _evaluate_run(run_folder, episodes, validation_episodes, workers, log, extra) -> dict:
     import json
-    from pathlib import Path
 
     from semuav_jax.agents.runs import EVAL_FILE, EVAL_MD, load_run, run_params
-    from semuav_jax.io import atomic_write
     from semuav_jax.provenance import provenance
 
+    folder = run_folder.path
     run, config, nets = load_run(folder)
     params = run_params(run)
     network = q_network(params, config)
@@ -125,8 +138,8 @@ def evaluate_run(folder, episodes: int = 1000, validation_episodes: int = 500, w
     r = compare(network, nets, config, params, bandwidths, episodes, validation_episodes, workers, log=log)
     r.update(agent_command=run.get("command"), **(extra or {}), **provenance(params))
     if is_main():  # of several processes, process 0 writes
-        atomic_write(Path(folder) / EVAL_FILE, json.dumps(r, indent=2).encode())
-        atomic_write(Path(folder) / EVAL_MD, (markdown(r) + "\n").encode())
+        run_folder.write(EVAL_FILE, json.dumps(r, indent=2).encode())
+        run_folder.write(EVAL_MD, (markdown(r) + "\n").encode())
     return r
 
 
@@ -162,8 +175,8 @@ def main(argv=None) -> int:
                     help="only the agents, on --validation-episodes validation layouts at 5/25/40 kHz "
                          "(for choosing settings; writes nothing)")
     args = ap.parse_args(argv)
-    if min(args.episodes, args.validation_episodes, args.workers) < 1:
-        ap.error("--episodes, --validation-episodes and --workers must be >= 1")
+    if min(args.validation_episodes, args.workers) < 1 or args.episodes < 2:
+        ap.error("--episodes must be >= 2 (its intervals need two), --validation-episodes and --workers >= 1")
     if len(args.run) > 1 and not args.validation:
         ap.error("several run folders need --validation")
     try:

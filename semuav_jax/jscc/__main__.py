@@ -1,7 +1,7 @@
 """Command line for the DeepJSCC of MODEL.md section 9: train, curves, figure.
 
     python -m semuav_jax.jscc train --out runs/jscc --steps 3600
-    python -m semuav_jax.jscc curves --ckpt runs/jscc --out semuav_jax/data/psnr_curves.npz
+    python -m semuav_jax.jscc curves --ckpt runs/jscc --out semuav_jax/data/psnr_curves.npz --model-out semuav_jax/data/deepjscc.msgpack
     python -m semuav_jax.jscc figure --out docs/figures/deepjscc.png
 """
 
@@ -22,7 +22,7 @@ def _train(a) -> None:
         raise ValueError("give at most one of --images and --cifar10")
     if a.minutes is not None and not a.minutes > 0:
         raise ValueError(f"--minutes must be positive, got {a.minutes}")
-    check_out(a.out, a.resume, a.overwrite)
+    check_out(a.out, a.resume, a.overwrite).release()  # checked now; train() claims it for the run
     # every TrainConfig field has the --option of the same name, None when not given
     given = {f.name: getattr(a, f.name) for f in dataclasses.fields(TrainConfig) if getattr(a, f.name) is not None}
     if a.resume:
@@ -94,7 +94,7 @@ def main(argv=None) -> int:
     c = sub.add_parser("curves", help="evaluate C[i, k] on the held-out test crops and write the curves file")
     c.add_argument("--ckpt", required=True, help="checkpoint directory of `train`")
     c.add_argument("--out", required=True, help="curves .npz to write")
-    c.add_argument("--model-out", default=None, help="params .msgpack to write (default: beside --out)")
+    c.add_argument("--model-out", default=None, help="params .msgpack to write (default: none written)")
     c.set_defaults(func=_curves)
     f = sub.add_parser("figure", help="decoded examples and the PSNR-vs-k curve")
     f.add_argument("--out", required=True, help="png to write")

@@ -16,10 +16,10 @@ import jax.numpy as jnp
 import numpy as np
 from flax import serialization
 
-from semuav_jax.curves import default_curves_path, load_curves, save_curves
+from semuav_jax.curves import default_curves_path, load_curves, save_curves, validate_curves
 from semuav_jax.jscc import data
 from semuav_jax.jscc.model import BITS_PER_SYMBOL, IMAGE_SHAPE, IQ_CLIP, M, DeepJSCC, prefix_mask, quantize_iq, truncate
-from semuav_jax.io import atomic_write
+from semuav_jax.io import atomic_write, check_writable_folder
 from semuav_jax.jscc.train import load_checkpoint, load_config, make_optimizer, model_of
 
 DEFAULT_MODEL = "deepjscc.msgpack"
@@ -30,12 +30,10 @@ def default_model_path() -> Path:
     return default_curves_path().parent / DEFAULT_MODEL
 
 
-def save_model(path: str | os.PathLike, params, model: DeepJSCC) -> str:
-    """Write params (+ the module's fields) as flax msgpack atomically; returns the file's sha256."""
+def model_blob(params, model: DeepJSCC) -> bytes:
+    """The model file's bytes: params (+ the module's fields) as flax msgpack."""
     arch = {"width": model.width, "mask_input": model.mask_input}
-    blob = serialization.msgpack_serialize({**arch, "params": jax.device_get(params)})
-    atomic_write(path, blob)
-    return hashlib.sha256(blob).hexdigest()
+    return serialization.msgpack_serialize({**arch, "params": jax.device_get(params)})
 
 
 def load_model(path: str | os.PathLike | None = None):
@@ -50,6 +48,8 @@ def load_model(path: str | os.PathLike | None = None):
         model.apply({"params": params}, jnp.zeros((1, *IMAGE_SHAPE)), method=DeepJSCC.encode)
     except Exception as e:
         raise ValueError(f"{path}: not a readable DeepJSCC model ({type(e).__name__}: {e})") from e
+    if not all(np.isfinite(np.asarray(w)).all() for w in jax.tree_util.tree_leaves(params)):
+        raise ValueError(f"{path}: the model's weights are not finite")
     return model, params
 
 
@@ -84,15 +84,26 @@ def compute_curves(model, params, x: np.ndarray) -> np.ndarray:
 
 
 def write_curves(ckpt: str | os.PathLike, out: str | os.PathLike, model_out: str | os.PathLike | None = None):
-    """Evaluate the checkpoint in ``ckpt``, write the model .msgpack and the curves .npz."""
-    cfg, _ = load_config(ckpt)
-    params, _, step, history = load_checkpoint(ckpt, cfg, make_optimizer(cfg))
+    """Evaluate the checkpoint in ``ckpt`` and write the curves .npz ``out`` and, when ``model_out``
+    is given, the model .msgpack: both paths checked, the weights and the curves validated, before
+    anything is written; no other file is touched."""
     out = Path(out)
     if out.suffix != ".npz":
         raise ValueError(f"--out must be a .npz path, got {out}")
-    model_out = Path(model_out) if model_out is not None else out.parent / DEFAULT_MODEL
+    model_out = Path(model_out) if model_out is not None else None
+    if model_out is not None and (model_out.suffix != ".msgpack" or model_out.resolve() == out.resolve()):
+        raise ValueError(f"--model-out must be a .msgpack path other than --out, got {model_out}")
+    for path, what in ((out, "--out"), (model_out, "--model-out")):
+        if path is not None:
+            if path.is_dir():
+                raise ValueError(f"{what} {path} is a folder, not a file")
+            check_writable_folder(path.parent, f"the folder of {what}")
+    cfg, _ = load_config(ckpt)
+    params, _, step, history = load_checkpoint(ckpt, cfg, make_optimizer(cfg))
+    if not all(np.isfinite(np.asarray(w)).all() for w in jax.tree_util.tree_leaves(params)):
+        raise ValueError(f"{ckpt}: the checkpoint's weights are not finite (training diverged); nothing written")
     model = model_of(cfg)
-    model_hash = save_model(model_out, params, model)
+    blob = model_blob(params, model)
     x, names = data.builtin_test_set()
     C = compute_curves(model, params, x)
     mean = C.mean(axis=0)
@@ -118,10 +129,13 @@ def write_curves(ckpt: str | os.PathLike, out: str | os.PathLike, model_out: str
         "test_scales": list(data.TEST_SCALES),
         "num_test_images": len(names),
         "test_images": names,
-        "model_file": model_out.name,
-        "model_hash": model_hash,
+        "model_file": None if model_out is None else model_out.name,
+        "model_hash": hashlib.sha256(blob).hexdigest(),
         "mean_psnr_db": {f: float(mean[k]) for f, k in FRACTIONS.items()},
     }
+    validate_curves(C, meta, where=f"the curves of {ckpt}")  # before anything is written
+    if model_out is not None:
+        atomic_write(model_out, blob)
     save_curves(out, C, meta)
     return out, C, meta
 
@@ -133,6 +147,10 @@ def make_figure(out: str | os.PathLike, model: str | os.PathLike | None = None, 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    out = Path(out)
+    if out.suffix.lower() not in (".png", ".pdf", ".svg") or out.is_dir():
+        raise ValueError(f"--out must be a .png, .pdf or .svg file, got {out}")
+    check_writable_folder(out.parent, "the folder of --out")
     net, params = load_model(model)
     cv = load_curves(curves)
     x, names = data.builtin_test_set()
@@ -166,7 +184,6 @@ def make_figure(out: str | os.PathLike, model: str | os.PathLike | None = None, 
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="lower right")
     ax.set_title("DeepJSCC, ratio 1/6, 8-bit I/Q, noise-free", fontsize=8)
-    out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=90)
     plt.close(fig)

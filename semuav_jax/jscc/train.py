@@ -28,7 +28,6 @@ see which latent entries arrived.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import json
 import os
 import time
@@ -40,12 +39,12 @@ import numpy as np
 import optax
 from flax import serialization
 
-from semuav_jax.io import atomic_write, check_writable_folder, remove_stale_temps
+from semuav_jax.io import atomic_write
 from semuav_jax.jscc.data import sample_batch
-from semuav_jax.jscc.model import IMAGE_SHAPE, M, DeepJSCC, complex_noise, prefix_mask, quantize_iq, truncate
+from semuav_jax.jscc.loss import make_optimizer, make_train_step, model_of, transmit  # noqa: F401 - transmit: re-exported
+from semuav_jax.jscc.model import IMAGE_SHAPE, M
 
 CKPT_FILE = "checkpoint.msgpack"
-MSE_FLOOR = 1e-4
 CONFIG_FILE = "config.json"
 CHANNELS = ("awgn", "quantized")
 
@@ -86,17 +85,6 @@ class TrainConfig:
             raise ValueError(f"monotone_margin must be finite, got {self.monotone_margin}")
 
 
-def make_optimizer(cfg: TrainConfig) -> optax.GradientTransformation:
-    warmup = min(200, cfg.steps // 10)
-    sched = optax.warmup_cosine_decay_schedule(0.0, cfg.lr, warmup, cfg.steps, end_value=cfg.lr * 0.02)
-    return optax.chain(optax.clip_by_global_norm(1.0), optax.adam(sched))
-
-
-def model_of(cfg: TrainConfig) -> DeepJSCC:
-    """The network a config trains."""
-    return DeepJSCC(cfg.width, cfg.mask_input)
-
-
 def init_params(cfg: TrainConfig):
     model = model_of(cfg)
     x = jnp.zeros((1, *IMAGE_SHAPE), jnp.float32)
@@ -113,68 +101,6 @@ def start_params(cfg: TrainConfig):
             raise ValueError(f"--init-from {cfg.init_from} has {name} {getattr(src_cfg, name)}, not {getattr(cfg, name)}")
     params, _, _, _ = load_checkpoint(cfg.init_from, src_cfg, make_optimizer(src_cfg))
     return params
-
-
-def transmit(cfg: TrainConfig, s: jax.Array, k: jax.Array, key: jax.Array, copies: int = 1) -> jax.Array:
-    """Received symbols of ``copies`` stacked transmissions of ``s`` (B, M), copy j keeping the
-    first ``k[j*B + b]`` symbols, renormalized, through ``cfg.channel`` (AWGN at ``snr_db``, the
-    same noise in every copy; or the noise-free 8-bit I/Q quantizer of the curves, with a
-    straight-through gradient); the tail is zero-padded."""
-    mask = prefix_mask(k, s.shape[-1])
-    tx = truncate(jnp.tile(s, (copies, 1)), k)
-    if cfg.channel == "awgn":
-        rx = tx + jnp.tile(complex_noise(key, s.shape, cfg.snr_db), (copies, 1))
-    else:
-        rx = tx + jax.lax.stop_gradient(quantize_iq(tx) - tx)
-    return jnp.where(mask, rx, 0.0)
-
-
-def _log_mse(y, x):
-    return 10.0 * jnp.log10(jnp.mean((y - x) ** 2, axis=(1, 2, 3)) + MSE_FLOOR)
-
-
-@functools.lru_cache(maxsize=4)
-def make_train_step(cfg: TrainConfig):
-    """Jitted (params, opt_state, x, key) -> (params, opt_state, loss); cached per config."""
-    model = model_of(cfg)
-    opt = make_optimizer(cfg)
-
-    def loss_fn(params, x, k, key):
-        s = model.apply({"params": params}, x, method=DeepJSCC.encode)
-        y = model.apply({"params": params}, transmit(cfg, s, k, key), method=DeepJSCC.decode)
-        return jnp.mean(_log_mse(y, x))
-
-    def plain_draw(key, b):
-        k_max = jnp.where(jax.random.bernoulli(key, 0.75, (b,)), M, M // 2)
-        return (jax.random.randint(jax.random.fold_in(key, 1), (b,), 0, k_max + 1),)
-
-    def mono_loss_fn(params, x, k1, k2, key):
-        s = model.apply({"params": params}, x, method=DeepJSCC.encode)
-        k = jnp.concatenate([k1, k2])
-        rx = transmit(cfg, s, k, key, copies=2)
-        y = model.apply({"params": params}, rx, method=DeepJSCC.decode)
-        l1, l2 = jnp.split(_log_mse(y, jnp.concatenate([x, x])), 2)
-        hinge = jax.nn.relu(l2 - l1 + cfg.monotone_margin)
-        return 0.5 * jnp.mean(l1 + l2) + cfg.monotone_weight * jnp.mean(hinge)
-
-    def mono_draw(key, b):
-        c = jax.random.split(key, 5)
-        k2 = jnp.where(jax.random.bernoulli(c[0], 0.25, (b,)), M, jax.random.randint(c[1], (b,), 1, M + 1))
-        near = jnp.maximum(k2 - jax.random.randint(c[2], (b,), 1, cfg.monotone_gap + 1), 0)
-        far = jax.random.randint(c[3], (b,), 0, k2)
-        return jnp.where(jax.random.bernoulli(c[4], 0.5, (b,)), near, far), k2
-
-    mono = cfg.monotone_weight > 0
-    loss_of, draw = (mono_loss_fn, mono_draw) if mono else (loss_fn, plain_draw)
-
-    @jax.jit
-    def step(params, opt_state, x, key):
-        kk, kn = jax.random.split(key)
-        loss, grads = jax.value_and_grad(loss_of)(params, x, *draw(kk, x.shape[0]), kn)
-        updates, opt_state = opt.update(grads, opt_state, params)
-        return optax.apply_updates(params, updates), opt_state, loss
-
-    return step
 
 
 def _config_text(cfg: TrainConfig) -> str:
@@ -198,17 +124,23 @@ def save_checkpoint(out: Path, cfg: TrainConfig, params, opt_state, step: int, h
     atomic_write(out / CKPT_FILE, serialization.to_bytes(state))
 
 
-def check_out(out: str | os.PathLike, resume: bool = False, overwrite: bool = False) -> None:
-    """ValueError unless checkpoints can be written to the directory ``out`` (made if absent) and,
-    unless ``resume`` or ``overwrite``, it holds none yet."""
+def check_out(out: str | os.PathLike, resume: bool = False, overwrite: bool = False):
+    """The directory ``out`` claimed for checkpoints (``semuav_jax.runfolder``: ours or new, locked);
+    ValueError unless it can be written and, unless ``resume`` or ``overwrite``, holds none yet."""
+    from semuav_jax.runfolder import RunFolder
+
     out = Path(out)
     if resume and overwrite:
         raise ValueError("give at most one of --resume and --overwrite")
-    check_writable_folder(out)
+    folder = RunFolder.claim(out, "jscc train", adopt=() if overwrite else (CKPT_FILE, CONFIG_FILE))
     held = [n for n in (CKPT_FILE, CONFIG_FILE) if (out / n).exists()]
     if held and not (resume or overwrite):
+        folder.release()
         raise ValueError(f"--out {out} already holds a checkpoint ({', '.join(held)}): "
                          "give --resume to continue it or --overwrite to replace it")
+    for n in (CKPT_FILE, CONFIG_FILE):
+        folder.record(n)
+    return folder
 
 
 def load_config(ckpt_dir: str | os.PathLike) -> tuple[TrainConfig, dict]:
@@ -270,9 +202,15 @@ def train(
     if not photos:
         raise ValueError("no training photos")
     out = Path(out) if out is not None else None
-    if out is not None:
-        check_out(out, resume, overwrite)
-        remove_stale_temps(out, (CKPT_FILE, CONFIG_FILE))
+    folder = check_out(out, resume, overwrite) if out is not None else None  # removes a killed save's temporaries
+    try:
+        return _train(cfg, photos, out, resume, minutes, overwrite, ckpt_every_s, progress, log_every)
+    finally:
+        if folder is not None:
+            folder.release()
+
+
+def _train(cfg, photos, out, resume, minutes, overwrite, ckpt_every_s, progress, log_every):
     opt = make_optimizer(cfg)
     history: list = []
     start, elapsed0 = 0, 0.0
@@ -311,6 +249,10 @@ def train(
         if step % log_every == 0 or step == cfg.steps:
             mean_loss = float(np.mean(np.asarray(jax.device_get(window))))
             window = []
+            if not (np.isfinite(mean_loss) and all(np.isfinite(w).all() for w in jax.tree_util.tree_leaves(params))):
+                kept = f"; {out} keeps its last checkpoint" if out is not None and (out / CKPT_FILE).is_file() else ""
+                raise ValueError(f"training diverged at step {step} (loss {mean_loss}, or non-finite weights): nothing "
+                                 f"saved for it{kept}; change the options (e.g. --lr, --snr-db) and start again")
             history.append((step, mean_loss, elapsed0 + time.time() - t0))
             if bar is not None:
                 bar.set_postfix(psnr=f"{-mean_loss:.2f}")
