@@ -227,7 +227,7 @@ def _animate(args) -> int:
     if tuned is None:
         print(f"tuning v_b* at {PANEL_B / 1e3:g} kHz on {args.grid['validation_layouts']} validation layouts")
         t = tune(scenario_params("random", curves, **kw), (PANEL_B,), args.grid["validation_layouts"], workers=args.workers)
-        tuned = {n: t[n]["v_star"][0] for n in ("greedy", "tsp")}
+        tuned = {n: t[n]["v_star"][0] for n in ("greedy", "tsp")} | {n: tuple(t[n]["knobs"][0]) for n in ("greedy-dwell", "tsp-dwell")}
     traces = paper_layout_traces(q_network(fixed, config), nets, config, fixed, tuned)
     animate(traces, fixed, args.animate, progress=True)
     print(f"wrote {args.animate} ({Path(args.animate).stat().st_size / 1e6:.2f} MB) in {time.time() - t0:.0f} s")

@@ -83,7 +83,8 @@ def _initial_psnr(params: EnvParams) -> float:
 
 
 def shipped_tuned_speeds(folder, B: float) -> dict | None:
-    """v_b* of greedy and TSP at bandwidth B from a run folder's eval.json (None if it has no tuning at B)."""
+    """v_b* of greedy and TSP, and the dwell rules' knobs where recorded, at bandwidth B from a run
+    folder's eval.json (None if it has no tuning at B)."""
     f = Path(folder) / "eval.json"
     if not f.is_file():
         return None
@@ -91,13 +92,15 @@ def shipped_tuned_speeds(folder, B: float) -> dict | None:
     bandwidths = [row["B"] for row in r.get("rows", [])]
     if B not in bandwidths or "tuning" not in r:
         return None
-    return {n: r["tuning"][n]["v_star"][bandwidths.index(B)] for n in ("greedy", "tsp")}
+    j = bandwidths.index(B)
+    return {n: r["tuning"][n]["v_star"][j] for n in ("greedy", "tsp")} | {
+        n: tuple(r["tuning"][n]["knobs"][j]) for n in ("greedy-dwell", "tsp-dwell") if n in r["tuning"]}
 
 
 def paper_layout_traces(network, nets, config, fixed: EnvParams, tuned: dict) -> dict[str, dict]:
     """{panel title: trace} of seed 0 of the agent, greedy and TSP at their tuned speeds ``tuned``
-    ({"greedy": v, "tsp": v}) and the offline planner, one episode each on ``fixed``'s layout
-    (test key 0, as Fig. 2c)."""
+    ({"greedy": v, "tsp": v}, plus "tsp-dwell": (v_c, k*, margin) when known), the open-loop and
+    the exact planner, one episode each on ``fixed``'s layout (test key 0, as Fig. 2c)."""
     from semuav_jax.experiments.fig2 import traced_runs
     from semuav_jax.keys import TEST_SEED, episode_keys
 
