@@ -67,12 +67,12 @@ def test_reduced_run_properties(reduced):
         assert 0 <= b["symbols_per_served"][0] <= 1 and b["dwell_per_served_s"][0] >= 0
     for p in r["panel_b"].values():
         assert all(0 <= s <= 1 for s in p["symbols_per_covered"]) and len(p["coverage"]) == 2
-    assert set(r["paths"]) == {"agent", "greedy v_b*", "tsp v_b*", "planner"}
+    assert set(r["paths"]) == {"agent", "greedy v_b*", "tsp v_b*", "greedy-dwell", "tsp-dwell", "planner", "exact planner"}
     for p in r["paths"].values():
         np.testing.assert_array_equal(p["q"][0], [0.0, 300.0])
         assert len(p["q"]) == round(p["mission_time"] / 0.5) + 1
     text = fig2.markdown({**r, "paths": None})
-    assert "DDQN − greedy v_b*" in text and "speed while a device transmits" in text
+    assert "DDQN − tsp-dwell" in text and "DDQN − exact planner" in text and "speed while a device transmits" in text
 
 
 @pytest.mark.slow
