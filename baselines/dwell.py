@@ -79,15 +79,15 @@ def check_knobs(v_c, k_star, margin, params: EnvParams):
     """The knob grids as float32 arrays, or a one-line ValueError naming the first bad value:
     v_c finite and > 0 m/s, k* in (0, M], margin finite (s; < 0 trusts eqs. 7.4-7.5, which over-estimate)."""
     out = []
-    for name, x, ok in (("v_c", v_c, lambda a: np.isfinite(a) & (a > 0)),
-                        ("k_star", k_star, lambda a: np.isfinite(a) & (a > 0) & (a <= params.M)),
-                        ("margin", margin, np.isfinite)):
+    for name, x, ok, rule in (("v_c", v_c, lambda a: np.isfinite(a) & (a > 0), "finite and > 0 m/s"),
+                              ("k_star", k_star, lambda a: np.isfinite(a) & (a > 0) & (a <= params.M),
+                               f"in (0, M = {params.M}]"),
+                              ("margin", margin, np.isfinite, "finite (s)")):
         a = np.atleast_1d(np.asarray(x, np.float64))
         if a.ndim != 1 or a.size == 0:
             raise ValueError(f"{name} must be a number or a 1-D list of numbers, got {x!r}")
         bad = a[~ok(a)]
         if bad.size:
-            rule = {"v_c": "finite and > 0 m/s", "k_star": f"in (0, M = {params.M}]", "margin": "finite (s)"}[name]
             raise ValueError(f"{name} must be {rule}, got {bad[0]:g}")
         out.append(jnp.asarray(a, jnp.float32))
     return out

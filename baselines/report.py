@@ -95,8 +95,7 @@ def flights(params, keys, tuned: dict, bandwidths=BANDWIDTHS, workers: int = 2, 
 
 def summary(m: dict, T_s: float | None = None) -> dict:
     """Mean PSNR with its t interval, coverage and arrival with its Wilson interval of per-episode
-    metrics; with the mission length ``T_s``, the time left unused (T - mission time, s) and the
-    devices left unserved (m_n = 0: coverage N - coverage is not known here, so the mean of T - t)."""
+    metrics; with the mission length ``T_s``, also the mean time left unused (T - mission time, s)."""
     mean, ci = mean_ci(m["mean_psnr"])
     arrived = np.asarray(m["arrived"], np.float64)
     lo, hi = wilson_interval(arrived.mean(), arrived.size)

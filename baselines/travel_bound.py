@@ -22,6 +22,7 @@ import numpy as np
 
 from baselines.bound import _check_keys, peak_rate
 from baselines.evaluate import layouts
+from semuav_jax.control import range_radius
 from semuav_jax.params import EnvParams, validate_params
 
 SAFETY_DB = 1e-4  # float32 rounding of the env's mean PSNR
@@ -54,7 +55,7 @@ def dead_slots(dev_pos, params: EnvParams) -> np.ndarray:
     subsets) plus the final stretch, each stretch of length g worth (g / (v_max tau) - 1)+ slots."""
     p = np.asarray(dev_pos, np.float64)
     E, n = p.shape[:2]
-    rc = float(np.sqrt(max(float(params.D_com) ** 2 - float(params.H) ** 2, 0.0)))
+    rc = float(range_radius(params))
     step = float(params.v_max) * float(params.tau)
     w = lambda g: np.maximum(np.maximum(g, 0.0) / step - 1.0, 0.0)
     q0, q_fin, r_arr = np.asarray(params.q0, np.float64), np.asarray(params.q_fin, np.float64), float(params.r_arr)

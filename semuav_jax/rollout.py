@@ -36,13 +36,8 @@ def delay_draws(key, params: EnvParams):
     return jax.random.uniform(key, (params.K,))
 
 
-def episode(policy: Policy, key, params: EnvParams, policy_state=None, init_state=None, trace=False):
-    """One episode of K slots from ``init_state`` (or a reset with ``key``); returns (metrics, trace).
-
-    The trace (when asked) holds, per slot, the state fields of ``TRACE_FIELDS`` and the reward.
-    """
-    k_reset, k_steps = jax.random.split(key)
-    state = reset_state(k_reset, params) if init_state is None else init_state
+def _slot(policy: Policy, params: EnvParams, trace: bool):
+    """The scan body of one slot: the policy's command, the transition, the slot's trace entry."""
 
     def body(carry, u):
         state, ps = carry
@@ -51,8 +46,24 @@ def episode(policy: Policy, key, params: EnvParams, policy_state=None, init_stat
         out = {f: getattr(state, f) for f in TRACE_FIELDS} | {"reward": rew} if trace else None
         return (state, ps), out
 
+    return body
+
+
+def _check_valid(metrics) -> None:
+    if not isinstance(metrics["valid"], jax.core.Tracer) and not bool(jnp.all(metrics["valid"])):
+        raise ValueError("the simulation left float32 (a rate, power or return overflowed): check the parameters' scale")
+
+
+def episode(policy: Policy, key, params: EnvParams, policy_state=None, init_state=None, trace=False):
+    """One episode of K slots from ``init_state`` (or a reset with ``key``); returns (metrics, trace).
+
+    The trace (when asked) holds, per slot, the state fields of ``TRACE_FIELDS`` and the reward.
+    """
+    k_reset, k_steps = jax.random.split(key)
+    state = reset_state(k_reset, params) if init_state is None else init_state
     # unroll=2 lets XLA fuse across two slots: ~15 % faster on CPU (docs/performance.md)
-    (final, ps), tr = jax.lax.scan(body, (state, policy_state), delay_draws(k_steps, params), unroll=2)
+    (final, ps), tr = jax.lax.scan(_slot(policy, params, trace), (state, policy_state), delay_draws(k_steps, params),
+                                   unroll=2)
     metrics = episode_metrics(final, params)
     if hasattr(ps, "episode_metrics"):  # a policy may report its own (e.g. the shield share)
         metrics = metrics | ps.episode_metrics()
@@ -81,8 +92,7 @@ def rollout(policy: Policy, keys, params: EnvParams, policy_state=None, init_sta
     if keys.ndim != 2 and not jax.dtypes.issubdtype(keys.dtype, jax.dtypes.prng_key):
         raise ValueError(f"keys must be a batch of PRNG keys (E, 2), got shape {keys.shape}")
     metrics, tr = _rollout(policy, keys, params, policy_state, init_state, trace, state_axes)
-    if not isinstance(metrics["valid"], jax.core.Tracer) and not bool(jnp.all(metrics["valid"])):
-        raise ValueError("the simulation left float32 (a rate, power or return overflowed): check the parameters' scale")
+    _check_valid(metrics)
     return metrics, tr
 
 
@@ -91,13 +101,7 @@ def _segment(policy, states, policy_state, draws, params, trace):
     """The slots of ``draws`` (E, R) from ``states``: the body of :func:`episode` over R slots."""
 
     def one(state, ps, u):
-        def body(carry, ui):
-            state, ps = carry
-            accel, ps = policy(ps, state, params)
-            state, rew = transition_u(ui, state, accel, params)
-            return (state, ps), ({f: getattr(state, f) for f in TRACE_FIELDS} | {"reward": rew} if trace else None)
-
-        return jax.lax.scan(body, (state, ps), u)
+        return jax.lax.scan(_slot(policy, params, trace), (state, ps), u)
 
     (states, policy_state), tr = jax.vmap(one)(states, policy_state, draws)
     return states, policy_state, tr
@@ -124,6 +128,5 @@ def rollout_replanned(policy: Policy, keys, params: EnvParams, replan: Callable,
         states, ps, tr = _segment(policy, states, ps, draws[:, t0:t0 + int(every)], params, trace)
         parts.append(tr)
     metrics = jax.vmap(episode_metrics, (0, None))(states, params)
-    if not bool(jnp.all(metrics["valid"])):
-        raise ValueError("the simulation left float32 (a rate, power or return overflowed): check the parameters' scale")
+    _check_valid(metrics)
     return metrics, (jax.tree.map(lambda *x: jnp.concatenate(x, axis=1), *parts) if trace else None)
