@@ -4,6 +4,17 @@ from baselines.evaluate import baseline_metrics, evaluate, layouts, run, sweep, 
 from baselines.policies import DEFAULT_V_B, POLICIES, BaselineState, greedy, init_state, straight, tsp
 
 __all__ = [
-    "DEFAULT_V_B", "POLICIES", "BaselineState", "baseline_metrics", "evaluate", "greedy", "init_state",
-    "layouts", "run", "straight", "sweep", "tsp", "tsp_ranks",
+    "DEFAULT_V_B",
+    "POLICIES",
+    "BaselineState",
+    "baseline_metrics",
+    "evaluate",
+    "greedy",
+    "init_state",
+    "layouts",
+    "run",
+    "straight",
+    "sweep",
+    "tsp",
+    "tsp_ranks",
 ]

@@ -71,13 +71,13 @@ def _profile(c: np.ndarray, cap: int) -> np.ndarray:
         if L_f >= M1:  # loop over the device's k
             for k in range(min(M1, L)):
                 s = min(L_f, L - k)
-                np.add(f[:, :s], cj[:, k:k + 1], out=tmp[:, :s])
-                np.maximum(out[:, k:k + s], tmp[:, :s], out=out[:, k:k + s])
+                np.add(f[:, :s], cj[:, k : k + 1], out=tmp[:, :s])
+                np.maximum(out[:, k : k + s], tmp[:, :s], out=out[:, k : k + s])
         else:  # loop over the budget b already spent
             for b in range(min(L_f, L)):
                 s = min(M1, L - b)
-                np.add(cj[:, :s], f[:, b:b + 1], out=tmp[:, :s])
-                np.maximum(out[:, b:b + s], tmp[:, :s], out=out[:, b:b + s])
+                np.add(cj[:, :s], f[:, b : b + 1], out=tmp[:, :s])
+                np.maximum(out[:, b : b + s], tmp[:, :s], out=out[:, b : b + s])
         f = out
     return f
 

@@ -38,8 +38,12 @@ class DwellState:
 
 
 def init_dwell(v_c, k_star, margin, rank) -> DwellState:
-    return DwellState(v_c=jnp.asarray(v_c, jnp.float32), k_star=jnp.asarray(k_star, jnp.float32),
-                      margin=jnp.asarray(margin, jnp.float32), rank=jnp.asarray(rank, jnp.int32))
+    return DwellState(
+        v_c=jnp.asarray(v_c, jnp.float32),
+        k_star=jnp.asarray(k_star, jnp.float32),
+        margin=jnp.asarray(margin, jnp.float32),
+        rank=jnp.asarray(rank, jnp.int32),
+    )
 
 
 def candidates(ps: DwellState, s, params: EnvParams):
@@ -79,10 +83,11 @@ def check_knobs(v_c, k_star, margin, params: EnvParams):
     """The knob grids as float32 arrays, or a one-line ValueError naming the first bad value:
     v_c finite and > 0 m/s, k* in (0, M], margin finite (s; < 0 trusts eqs. 7.4-7.5, which over-estimate)."""
     out = []
-    for name, x, ok, rule in (("v_c", v_c, lambda a: np.isfinite(a) & (a > 0), "finite and > 0 m/s"),
-                              ("k_star", k_star, lambda a: np.isfinite(a) & (a > 0) & (a <= params.M),
-                               f"in (0, M = {params.M}]"),
-                              ("margin", margin, np.isfinite, "finite (s)")):
+    for name, x, ok, rule in (
+        ("v_c", v_c, lambda a: np.isfinite(a) & (a > 0), "finite and > 0 m/s"),
+        ("k_star", k_star, lambda a: np.isfinite(a) & (a > 0) & (a <= params.M), f"in (0, M = {params.M}]"),
+        ("margin", margin, np.isfinite, "finite (s)"),
+    ):
         a = np.atleast_1d(np.asarray(x, np.float64))
         if a.ndim != 1 or a.size == 0:
             raise ValueError(f"{name} must be a number or a 1-D list of numbers, got {x!r}")
@@ -121,5 +126,9 @@ def dwell_sweep(name: str, keys, params: EnvParams, v_c, k_star, margin, B, rank
 
 def grid_points(v_c, k_star, margin) -> list[tuple[float, float, float]]:
     """The (v_c, k*, margin) of each grid point, in :func:`dwell_sweep`'s order."""
-    return [(float(a), float(b), float(c)) for a in np.atleast_1d(v_c) for b in np.atleast_1d(k_star)
-            for c in np.atleast_1d(margin)]
+    return [
+        (float(a), float(b), float(c))
+        for a in np.atleast_1d(v_c)
+        for b in np.atleast_1d(k_star)
+        for c in np.atleast_1d(margin)
+    ]

@@ -48,8 +48,9 @@ def tsp_ranks(keys, params: EnvParams, time_limit_ms: int = tsp_solver.DEFAULT_T
         order = tsp_solver.solve_order(pos[0], q0, q_fin, time_limit_ms)
         orders = np.broadcast_to(order, pos.shape[:2])
     else:  # each process solves its share of the layouts
-        orders = split_hosts(lambda lo, hi: tsp_solver.solve_orders(pos[lo:hi], q0, q_fin, time_limit_ms, workers),
-                             len(pos))
+        orders = split_hosts(
+            lambda lo, hi: tsp_solver.solve_orders(pos[lo:hi], q0, q_fin, time_limit_ms, workers), len(pos)
+        )
     return np.argsort(orders, axis=-1).astype(np.int32)
 
 

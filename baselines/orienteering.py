@@ -42,10 +42,14 @@ def _check(travel_s, service_s, prize, budget_s, time_limit_ms, batched: bool):
     if batched and travel_s.ndim != 3:
         raise ValueError(f"travel_s must be (E, N+2, N+2), got shape {travel_s.shape}")
     if service_s.ndim != len(lead) + 2 or service_s.shape[-1] < 1:
-        raise ValueError(f"service_s must be {'(E, N, L)' if batched else '(N, L)'} with L >= 1, got shape {service_s.shape}")
+        raise ValueError(
+            f"service_s must be {'(E, N, L)' if batched else '(N, L)'} with L >= 1, got shape {service_s.shape}"
+        )
     n, n_opt = service_s.shape[-2:]
     if travel_s.shape != lead + (n + 2, n + 2):
-        raise ValueError(f"travel_s must have shape {lead + (n + 2, n + 2)} for service_s {service_s.shape}, got {travel_s.shape}")
+        raise ValueError(
+            f"travel_s must have shape {lead + (n + 2, n + 2)} for service_s {service_s.shape}, got {travel_s.shape}"
+        )
     if prize.shape != service_s.shape:
         raise ValueError(f"prize must have the shape of service_s {service_s.shape}, got {prize.shape}")
     budget = np.asarray(budget_s, np.float64)
@@ -95,7 +99,7 @@ def _finish(travel_s, service_s, prize, budget, visits):
 # ----------------------------------------------------------------------------- exact DP
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _layers(n: int):
     """Per subset size r >= 2: arrays (S, j, S without j) of all subsets S of size r and j in S."""
     subsets = np.arange(1 << n)
@@ -213,7 +217,9 @@ def _solve_routing(travel, service, prize, budget, time_limit_ms):
     manager = pywrapcp.RoutingIndexManager(len(dev), 1, [0], [len(dev) - 1])
     model = pywrapcp.RoutingModel(manager)
     model.SetArcCostEvaluatorOfAllVehicles(model.RegisterTransitMatrix(cost.tolist()))
-    model.AddDimension(model.RegisterTransitMatrix(transit.tolist()), 0, int(np.floor(budget * 100.0 + _ROUND_TOL)), True, "time")
+    model.AddDimension(
+        model.RegisterTransitMatrix(transit.tolist()), 0, int(np.floor(budget * 100.0 + _ROUND_TOL)), True, "time"
+    )
     for d in range(n):
         nodes = [manager.NodeToIndex(1 + d * n_opt + l) for l in range(n_opt)]
         model.AddDisjunction(nodes, int(np.rint(max_prize[d] * scale)), 1)
@@ -255,7 +261,9 @@ def _best_options(travel, service, prize, budget, visits):
     c, options = int(np.argmax(K[-1] >= K[-1, cap])), []
     for i in range(len(devs), 0, -1):
         d = devs[i - 1]
-        l = next(l for l in range(w.shape[1]) if w[i - 1, l] <= c and K[i - 1, c - w[i - 1, l]] + prize[d, l] == K[i, c])
+        l = next(
+            l for l in range(w.shape[1]) if w[i - 1, l] <= c and K[i - 1, c - w[i - 1, l]] + prize[d, l] == K[i, c]
+        )
         options.append(l)
         c -= w[i - 1, l]
     return list(zip(devs, reversed(options)))
@@ -283,7 +291,9 @@ def _solve_one(travel, service, prize, budget, time_limit_ms):
     return _finish(travel, service, prize, budget, visits)
 
 
-def solve(travel_s, service_s, prize, budget_s, time_limit_ms=DEFAULT_TIME_LIMIT_MS) -> tuple[np.ndarray, np.ndarray, float]:
+def solve(
+    travel_s, service_s, prize, budget_s, time_limit_ms=DEFAULT_TIME_LIMIT_MS
+) -> tuple[np.ndarray, np.ndarray, float]:
     """Best plan (order, option, value) for nodes [q0, dev_1..dev_N, q_fin].
 
     travel_s (N+2, N+2) s; service_s, prize (N, L); budget_s: travel plus services must fit.
@@ -296,7 +306,9 @@ def solve(travel_s, service_s, prize, budget_s, time_limit_ms=DEFAULT_TIME_LIMIT
 
 
 def _solve_many(travel_s, service_s, prize, budget_s, time_limit_ms) -> dict:
-    plans = [_solve_one(t, s, p, float(b), int(time_limit_ms)) for t, s, p, b in zip(travel_s, service_s, prize, budget_s)]
+    plans = [
+        _solve_one(t, s, p, float(b), int(time_limit_ms)) for t, s, p, b in zip(travel_s, service_s, prize, budget_s)
+    ]
     n = service_s.shape[1]
     return {
         "order": np.array([p[0] for p in plans], np.int32).reshape(-1, n),
@@ -312,13 +324,16 @@ def solve_batch(
 
     Batches of at least ``PARALLEL_MIN_PROBLEMS`` are split over ``workers`` processes.
     """
-    travel_s, service_s, prize, budget_s, time_limit_ms = _check(travel_s, service_s, prize, budget_s, time_limit_ms, batched=True)
+    travel_s, service_s, prize, budget_s, time_limit_ms = _check(
+        travel_s, service_s, prize, budget_s, time_limit_ms, batched=True
+    )
     if workers <= 1 or len(travel_s) < PARALLEL_MIN_PROBLEMS:
         out = _solve_many(travel_s, service_s, prize, budget_s, time_limit_ms)
     else:
         from baselines.workers import map_chunks  # not at top level: the workers load this file without the package
 
         batched = {"travel_s": travel_s, "service_s": service_s, "prize": prize, "budget_s": budget_s}
-        out = map_chunks(Path(__file__), "_solve_many", batched, {"time_limit_ms": time_limit_ms}, workers,
-                         desc="orienteering")
+        out = map_chunks(
+            Path(__file__), "_solve_many", batched, {"time_limit_ms": time_limit_ms}, workers, desc="orienteering"
+        )
     return out["order"], out["option"], out["value"]

@@ -24,8 +24,16 @@ from flax import struct
 from baselines import orienteering
 from baselines.evaluate import layouts
 from semuav_jax import channel
-from semuav_jax.control import (BRAKE, STOP_BRAKE, approach_speed, home_command, range_radius, speed_command, time_home,
-                                time_to_pass)
+from semuav_jax.control import (
+    BRAKE,
+    STOP_BRAKE,
+    approach_speed,
+    home_command,
+    range_radius,
+    speed_command,
+    time_home,
+    time_to_pass,
+)
 from semuav_jax.params import EnvParams
 
 PLAN_SPEEDS = (16.0, 20.0, 25.0)  # m/s, cruise speeds the planner chooses from
@@ -61,7 +69,11 @@ def _range_symbols(params: EnvParams, n: int = 400):
     """Ground radii r (midpoints over the range radius) and the symbol rate R(r) / beta of a lone device."""
     rc = float(range_radius(params))
     r = (np.arange(n) + 0.5) * rc / n
-    return r, np.asarray(channel.rate(jnp.asarray(r * r), params.H, params.P_n, params.B, params)) / float(params.beta), rc / n
+    return (
+        r,
+        np.asarray(channel.rate(jnp.asarray(r * r), params.H, params.P_n, params.B, params)) / float(params.beta),
+        rc / n,
+    )
 
 
 def visit_options(v, params: EnvParams):
@@ -88,8 +100,12 @@ def visit_options(v, params: EnvParams):
     k = np.maximum(np.round(np.asarray(TARGETS) * M), min(credit, M))
     hover_time = v / (2 * b) + v / (2 * a) + np.maximum(k - credit, 0.0) / hover_rate(params)
     service = np.ceil(np.concatenate([pass_time, hover_time]) / SERVICE_STEP_S - 1e-9) * SERVICE_STEP_S
-    return (np.concatenate([w, np.zeros(len(k))]), np.minimum(np.concatenate([pass_sym, k]), M),
-            service, np.concatenate([np.full(len(w), float(M)), k]))
+    return (
+        np.concatenate([w, np.zeros(len(k))]),
+        np.minimum(np.concatenate([pass_sym, k]), M),
+        service,
+        np.concatenate([np.full(len(w), float(M)), k]),
+    )
 
 
 def problems(dev_pos, dev_img, params: EnvParams, v):
@@ -99,15 +115,27 @@ def problems(dev_pos, dev_img, params: EnvParams, v):
     a, tau = float(params.a_max), float(params.tau)
     C = np.asarray(params.C, np.float64)
     E, N = dev_pos.shape[:2]
-    nodes = np.concatenate([np.broadcast_to(np.asarray(params.q0), (E, 1, 2)), dev_pos,
-                            np.broadcast_to(np.asarray(params.q_fin), (E, 1, 2))], axis=1)
+    nodes = np.concatenate(
+        [
+            np.broadcast_to(np.asarray(params.q0), (E, 1, 2)),
+            dev_pos,
+            np.broadcast_to(np.asarray(params.q_fin), (E, 1, 2)),
+        ],
+        axis=1,
+    )
     d = np.linalg.norm(nodes[:, :, None] - nodes[:, None], axis=-1)
     travel = d / v + tau
     travel[:, 0, :] += v / (2 * a)
     travel[:, :, -1] += v / (2 * BRAKE * a) - float(params.r_arr) / v
     w, sym, service, target = visit_options(v, params)
     prize = C[dev_img][:, :, np.floor(sym).astype(int)] - C[dev_img][:, :, :1]
-    return np.maximum(travel, 0.0), np.ascontiguousarray(np.broadcast_to(service, (E, N, len(w)))), np.maximum(prize, 0.0), w, target
+    return (
+        np.maximum(travel, 0.0),
+        np.ascontiguousarray(np.broadcast_to(service, (E, N, len(w)))),
+        np.maximum(prize, 0.0),
+        w,
+        target,
+    )
 
 
 def make_plans(keys, params: EnvParams, speeds=PLAN_SPEEDS, workers: int = 2) -> PlanState:
@@ -133,10 +161,14 @@ def make_plans(keys, params: EnvParams, speeds=PLAN_SPEEDS, workers: int = 2) ->
     order, w, target, _, v_p = best
     E = len(pos)
     return PlanState(
-        order=jnp.asarray(order, jnp.int32), target=jnp.asarray(target, jnp.float32), w=jnp.asarray(w, jnp.float32),
+        order=jnp.asarray(order, jnp.int32),
+        target=jnp.asarray(target, jnp.float32),
+        w=jnp.asarray(w, jnp.float32),
         v_p=jnp.asarray(v_p, jnp.float32),
-        s0=jnp.full((E,), hover_rate(params), jnp.float32), idx=jnp.zeros((E,), jnp.int32),
-        edge=jnp.full((E,), range_radius(params), jnp.float32), book=jnp.ones((E,), jnp.float32),
+        s0=jnp.full((E,), hover_rate(params), jnp.float32),
+        idx=jnp.zeros((E,), jnp.int32),
+        edge=jnp.full((E,), range_radius(params), jnp.float32),
+        book=jnp.ones((E,), jnp.float32),
     )
 
 
@@ -150,10 +182,15 @@ def planner(ps: PlanState, s, params: EnvParams):
         valid = (i < N) & (n >= 0)
         n = jnp.maximum(n, 0)
         hover = jnp.maximum(ps.target[n] - s.m[n], 0.0) / ps.s0
-        need = time_to_pass(s.q, s.v, s.dev_pos[n], ps.v_p, params) + hover * (ps.w[n] == 0) * ps.book + time_home(
-            s.dev_pos[n], jnp.zeros(2), ps.v_p, params)
+        need = (
+            time_to_pass(s.q, s.v, s.dev_pos[n], ps.v_p, params)
+            + hover * (ps.w[n] == 0) * ps.book
+            + time_home(s.dev_pos[n], jnp.zeros(2), ps.v_p, params)
+        )
         dist = jnp.linalg.norm(s.dev_pos[n] - s.q)
-        finished = (s.m[n] >= jnp.minimum(ps.target[n], params.M) - 1e-3) | ((ps.w[n] > 0) & (dist <= ps.w[n] * params.tau + 1.0))
+        finished = (s.m[n] >= jnp.minimum(ps.target[n], params.M) - 1e-3) | (
+            (ps.w[n] > 0) & (dist <= ps.w[n] * params.tau + 1.0)
+        )
         return valid & (finished | (need + MARGIN_S > left))
 
     idx = jax.lax.while_loop(done_with, lambda i: i + 1, ps.idx)

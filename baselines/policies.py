@@ -20,7 +20,9 @@ from semuav_jax.control import home_command, speed_command, time_home, time_to_p
 from semuav_jax.params import EnvParams
 
 DEFAULT_V_B = 8.9  # m/s, the paper's baseline speed
-MARGIN_S = 1.0  # seconds of slack in the feasibility test (eq. 7.6); 0 still arrived in 1000 of 1000 layouts at every v_b
+MARGIN_S = (
+    1.0  # seconds of slack in the feasibility test (eq. 7.6); 0 still arrived in 1000 of 1000 layouts at every v_b
+)
 
 
 def feasible(q, v, t, dev_pos, v_b, params: EnvParams):

@@ -51,8 +51,9 @@ def options(v: float, m, params: EnvParams):
     stop = lambda w: (v - w) ** 2 / (2 * v) * (1 / b + 1 / a) + TURN_SHARE * w / a
     pass_sym = (inb(w) + out(w)).sum(-1)
     s_in = np.cumsum(inb(0.0)[::-1])[::-1]  # symbols of the way in from the edge down to r (descending)
-    s_out = np.array([np.sum(sym[i:] / np.minimum(v, np.sqrt(2 * b * r[i] + 2 * a * (r[i:] - r[i])))) * dr
-                      for i in range(len(r))])  # way out from r, leaving at the speed sqrt(2 b r) of the way in
+    s_out = np.array(
+        [np.sum(sym[i:] / np.minimum(v, np.sqrt(2 * b * r[i] + 2 * a * (r[i:] - r[i])))) * dr for i in range(len(r))]
+    )  # way out from r, leaving at the speed sqrt(2 b r) of the way in
     k = np.minimum(np.asarray(HOVER_SYMBOLS, np.float64), M)
     m = np.asarray(m, np.float64)[..., None]
     need = np.maximum(k - m, 0.0)
@@ -95,8 +96,16 @@ def problems(q, v_now, m, t, dev_pos, dev_img, params: EnvParams, v: float):
 def _solve(states, params: EnvParams, v: float, workers: int):
     """(order, w, target per device, planned prize) of the episodes ``states`` at cruise speed v."""
     f = lambda x: np.asarray(x, np.float64)
-    travel, service, prize, budget, w, target = problems(f(states.q), f(states.v), f(states.m), np.asarray(states.t),
-                                                         f(states.dev_pos), np.asarray(states.dev_img), params, v)
+    travel, service, prize, budget, w, target = problems(
+        f(states.q),
+        f(states.v),
+        f(states.m),
+        np.asarray(states.t),
+        f(states.dev_pos),
+        np.asarray(states.dev_img),
+        params,
+        v,
+    )
     order, option, value = orienteering.solve_batch(travel, service, prize, budget, workers=workers)
     o = np.maximum(option, 0)
     return order, w[o], np.take_along_axis(target, o[..., None], -1)[..., 0], value
@@ -129,8 +138,11 @@ def make_replanner(params: EnvParams, speeds=PLAN_SPEEDS, workers: int = 2):
             for v in speeds:
                 new = _solve(states, params, v, workers)
                 better = np.full(E, True) if best is None else new[3] > best[3]
-                best = new if best is None else [np.where(better.reshape((-1,) + (1,) * (x.ndim - 1)), x, y)
-                                                 for x, y in zip(new, best)]
+                best = (
+                    new
+                    if best is None
+                    else [np.where(better.reshape((-1,) + (1,) * (x.ndim - 1)), x, y) for x, y in zip(new, best)]
+                )
                 v_p = np.where(better, v, v_p)
             (order, w, target), idx = best[:3], np.zeros(E, np.int32)
         else:
@@ -140,19 +152,28 @@ def make_replanner(params: EnvParams, speeds=PLAN_SPEEDS, workers: int = 2):
             host = jax.tree.map(np.asarray, states)
             for v in np.unique(v_p[todo]):
                 sel = todo & (v_p == v)
-                order[sel], w[sel], target[sel], _ = _solve(jax.tree.map(lambda x, sel=sel: x[sel], host), params,
-                                                            float(v), workers)
+                order[sel], w[sel], target[sel], _ = _solve(
+                    jax.tree.map(lambda x, sel=sel: x[sel], host), params, float(v), workers
+                )
             idx[todo] = 0
         zeros = np.zeros(E, np.float32)
-        return PlanState(order=order.astype(np.int32), target=target.astype(np.float32), w=w.astype(np.float32),
-                         v_p=v_p.astype(np.float32), s0=np.full(E, s0, np.float32), idx=idx.astype(np.int32),
-                         edge=zeros, book=zeros)
+        return PlanState(
+            order=order.astype(np.int32),
+            target=target.astype(np.float32),
+            w=w.astype(np.float32),
+            v_p=v_p.astype(np.float32),
+            s0=np.full(E, s0, np.float32),
+            idx=idx.astype(np.int32),
+            edge=zeros,
+            book=zeros,
+        )
 
     return replan
 
 
-def fly(keys, params: EnvParams, every_s: float = REPLAN_EVERY_S, speeds=PLAN_SPEEDS, workers: int = 2,
-        trace: bool = False):
+def fly(
+    keys, params: EnvParams, every_s: float = REPLAN_EVERY_S, speeds=PLAN_SPEEDS, workers: int = 2, trace: bool = False
+):
     """``(metrics, trace)`` of the receding-horizon planner on the episodes ``keys`` (the same
     layouts and delays as ``rollout``): NumPy (E,) metrics of MODEL.md section 8 and, with
     ``trace``, the per-slot trace of ``semuav_jax.rollout``."""
@@ -162,4 +183,3 @@ def fly(keys, params: EnvParams, every_s: float = REPLAN_EVERY_S, speeds=PLAN_SP
     every = max(1, round(every_s / float(params.tau)))
     m, tr = rollout_replanned(planner, keys, params, make_replanner(params, speeds, workers), every, trace)
     return jax.tree.map(np.asarray, m), tr
-

@@ -36,8 +36,11 @@ SPEED_GRID = tuple(float(v) for v in range(6, 26))  # m/s, 6..25 in 1 m/s steps
 BANDWIDTHS = (5e3, 20e3, 25e3, 40e3)  # Hz
 ARRIVAL_MIN = 0.995
 TUNED = ("greedy", "tsp")
-DWELL_GRID = {"v_c": (22.0, 25.0), "k_star": (8.0, 16.0, 24.0, 32.0, 48.0, 64.0, 96.0, 128.0),
-              "margin": (-6.0, -4.0, -2.0, 0.0, 2.0)}  # m/s, symbols, s
+DWELL_GRID = {
+    "v_c": (22.0, 25.0),
+    "k_star": (8.0, 16.0, 24.0, 32.0, 48.0, 64.0, 96.0, 128.0),
+    "margin": (-6.0, -4.0, -2.0, 0.0, 2.0),
+}  # m/s, symbols, s
 
 
 def tune(params, bandwidths=BANDWIDTHS, episodes: int = 500, grid=SPEED_GRID, workers: int = 2) -> dict:
@@ -59,8 +62,9 @@ def tune(params, bandwidths=BANDWIDTHS, episodes: int = 500, grid=SPEED_GRID, wo
     return out
 
 
-def flights(params, keys, tuned: dict, bandwidths=BANDWIDTHS, workers: int = 2, rank=None, plans=None,
-            account: bool = False) -> list[dict]:
+def flights(
+    params, keys, tuned: dict, bandwidths=BANDWIDTHS, workers: int = 2, rank=None, plans=None, account: bool = False
+) -> list[dict]:
     """Per-episode metrics (dicts of (E,) arrays) on ``keys`` at each bandwidth: greedy and TSP at
     the paper's speed and at their tuned v_b* (``tuned`` from :func:`tune`), and the planner.
     ``rank`` (TSP ranks of ``keys``) and ``plans`` (one PlanState per bandwidth) are solved here
@@ -82,8 +86,11 @@ def flights(params, keys, tuned: dict, bandwidths=BANDWIDTHS, workers: int = 2, 
             row[n] = {"v_b": v_c, "knobs": [v_c, k_star, margin], **{k: np.asarray(x) for k, x in m.items()}}
         t1 = time.perf_counter()
         plan = make_plans(keys, pb, workers=workers) if plans is None else plans[j]
-        row["planner"] = {"v_b": None, **{k: np.asarray(v) for k, v in run(planner, keys, pb, plan).items()},
-                          "wall_s": time.perf_counter() - t1}
+        row["planner"] = {
+            "v_b": None,
+            **{k: np.asarray(v) for k, v in run(planner, keys, pb, plan).items()},
+            "wall_s": time.perf_counter() - t1,
+        }
         t1 = time.perf_counter()
         m, tr = receding.fly(keys, pb, workers=workers, trace=account)
         row["exact planner"] = {"v_b": None, **m, "wall_s": time.perf_counter() - t1}
@@ -99,9 +106,13 @@ def summary(m: dict, T_s: float | None = None) -> dict:
     mean, ci = mean_ci(m["mean_psnr"])
     arrived = np.asarray(m["arrived"], np.float64)
     lo, hi = wilson_interval(arrived.mean(), arrived.size)
-    return {"mean_psnr": mean, "ci95": ci, "coverage": float(np.mean(m["coverage"])), "arrived": float(arrived.mean()),
-            "arrived_wilson95": [float(lo), float(hi)]} | (
-        {} if T_s is None else {"unused_s": float(np.mean(T_s - np.asarray(m["mission_time"], np.float64)))})
+    return {
+        "mean_psnr": mean,
+        "ci95": ci,
+        "coverage": float(np.mean(m["coverage"])),
+        "arrived": float(arrived.mean()),
+        "arrived_wilson95": [float(lo), float(hi)],
+    } | ({} if T_s is None else {"unused_s": float(np.mean(T_s - np.asarray(m["mission_time"], np.float64)))})
 
 
 EXACT_VS = ("planner", "greedy-dwell", "tsp-dwell")  # the exact planner's target: the best of these + 0.5 dB
@@ -116,30 +127,44 @@ def check_bandwidth(params, b: float, velocities=()) -> None:
         with np.errstate(divide="ignore", over="ignore"):
             service = visit_options(min(float(v), float(at.v_max)), at)[2]
         if not np.all(np.isfinite(np.asarray(service, np.float32))):
-            raise ValueError(f"bandwidth {b:g} Hz is too small for any image to arrive (the service time of a "
-                             "device is not finite in float32)")
+            raise ValueError(
+                f"bandwidth {b:g} Hz is too small for any image to arrive (the service time of a "
+                "device is not finite in float32)"
+            )
 
 
-def report(params, bandwidths=BANDWIDTHS, episodes: int = 1000, validation_episodes: int = 500, workers: int = 2,
-           log=print) -> dict:
+def report(
+    params, bandwidths=BANDWIDTHS, episodes: int = 1000, validation_episodes: int = 500, workers: int = 2, log=print
+) -> dict:
     """Every number of the table (JSON-ready)."""
     t0 = time.perf_counter()
     tuned = tune(params, bandwidths, validation_episodes, workers=workers)
-    log(f"v_b* and dwell knobs chosen on {validation_episodes} validation layouts ({time.perf_counter() - t0:.0f} s): "
-        + ", ".join(f"{n} {tuned[n]['v_star']}" for n in TUNED) + "; "
-        + ", ".join(f"{n} {tuned[n]['knobs']}" for n in DWELL_POLICIES))
+    log(
+        f"v_b* and dwell knobs chosen on {validation_episodes} validation layouts ({time.perf_counter() - t0:.0f} s): "
+        + ", ".join(f"{n} {tuned[n]['v_star']}" for n in TUNED)
+        + "; "
+        + ", ".join(f"{n} {tuned[n]['knobs']}" for n in DWELL_POLICIES)
+    )
     keys = episode_keys(TEST_SEED, episodes)
     T_s = params.K * float(params.tau)
     rows = []
     for b, fl in zip(bandwidths, flights(params, keys, tuned, bandwidths, workers, account=True)):
-        row = {"B": float(b), "policies": {k: {"v_b": m["v_b"], **({"knobs": m["knobs"]} if "knobs" in m else {}),
-                                               **summary(m, T_s)} for k, m in fl.items()}}
+        row = {
+            "B": float(b),
+            "policies": {
+                k: {"v_b": m["v_b"], **({"knobs": m["knobs"]} if "knobs" in m else {}), **summary(m, T_s)}
+                for k, m in fl.items()
+            },
+        }
         for name in ("planner", "exact planner"):
             row["policies"][name]["wall_s"] = fl[name]["wall_s"]
             row["policies"][name]["unserved"] = float(np.mean(params.N - np.asarray(fl[name]["coverage"])))
         row["planner_minus_tuned_greedy"] = mean_ci(fl["planner"]["mean_psnr"] - fl["greedy v_b*"]["mean_psnr"])
         best = max(EXACT_VS, key=lambda n: row["policies"][n]["mean_psnr"])
-        row["exact_minus_best"] = {"vs": best, "diff": mean_ci(fl["exact planner"]["mean_psnr"] - fl[best]["mean_psnr"])}
+        row["exact_minus_best"] = {
+            "vs": best,
+            "diff": mean_ci(fl["exact planner"]["mean_psnr"] - fl[best]["mean_psnr"]),
+        }
         pb = params.replace(B=b)
         t1 = time.perf_counter()
         bound = np.minimum(psnr_bound(keys, pb), travel_bound(keys, pb))
@@ -149,11 +174,21 @@ def report(params, bandwidths=BANDWIDTHS, episodes: int = 1000, validation_episo
         row["account"] = {k: float(np.mean(v)) for k, v in fl["exact planner"].pop("account").items()}
         rows.append(row)
         d, ci = row["exact_minus_best"]["diff"]
-        log(f"B = {b / 1e3:g} kHz: exact planner {row['policies']['exact planner']['mean_psnr']:.2f} dB "
+        log(
+            f"B = {b / 1e3:g} kHz: exact planner {row['policies']['exact planner']['mean_psnr']:.2f} dB "
             f"({d:+.2f} ± {ci:.2f} vs {best}), bound {row['bound']:.2f} dB; planner {fl['planner']['wall_s']:.0f} s, "
-            f"exact planner {fl['exact planner']['wall_s']:.0f} s, bound {row['bound_wall_s']:.0f} s")
-    return {"episodes": episodes, "test_seed": TEST_SEED, "validation_seed": VALIDATION_SEED, "N": params.N,
-            "arrival_min": ARRIVAL_MIN, "tuning": tuned, "rows": rows, "wall_s": time.perf_counter() - t0}
+            f"exact planner {fl['exact planner']['wall_s']:.0f} s, bound {row['bound_wall_s']:.0f} s"
+        )
+    return {
+        "episodes": episodes,
+        "test_seed": TEST_SEED,
+        "validation_seed": VALIDATION_SEED,
+        "N": params.N,
+        "arrival_min": ARRIVAL_MIN,
+        "tuning": tuned,
+        "rows": rows,
+        "wall_s": time.perf_counter() - t0,
+    }
 
 
 def setting(s: dict) -> str:
@@ -174,22 +209,37 @@ def markdown(r: dict) -> str:
     ]
     for row in r["rows"]:
         for name, s in row["policies"].items():
-            lines.append(f"| {row['B'] / 1e3:g} | {name} | {setting(s)} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | "
-                         f"{s['coverage']:.2f} | {100 * s['arrived']:.1f} % | {s['unused_s']:.1f} |")
+            lines.append(
+                f"| {row['B'] / 1e3:g} | {name} | {setting(s)} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | "
+                f"{s['coverage']:.2f} | {100 * s['arrived']:.1f} % | {s['unused_s']:.1f} |"
+            )
         lines.append(f"| {row['B'] / 1e3:g} | bound (no policy that arrives exceeds) | | {row['bound']:.2f} | | | |")
-    lines += ["", "| B (kHz) | exact planner − best of planner, greedy-dwell, TSP-dwell (paired 95 % CI) | "
-              "bound − exact planner | planner − greedy at v_b* |", "|---|---|---|---|"]
+    lines += [
+        "",
+        "| B (kHz) | exact planner − best of planner, greedy-dwell, TSP-dwell (paired 95 % CI) | "
+        "bound − exact planner | planner − greedy at v_b* |",
+        "|---|---|---|---|",
+    ]
     for row in r["rows"]:
         e, b, g = row["exact_minus_best"], row["bound_minus_exact"], row["planner_minus_tuned_greedy"]
-        lines.append(f"| {row['B'] / 1e3:g} | {e['diff'][0]:+.2f} ± {e['diff'][1]:.2f} (vs {e['vs']}) | "
-                     f"{b[0]:.2f} ± {b[1]:.2f} | {g[0]:+.2f} ± {g[1]:.2f} |")
-    lines += ["", "Exact planner against the bound's relaxation (means over the test layouts; docs/baselines.md):", "",
-              "| B (kHz) | seconds with data | without data, flown | dead seconds the relaxation allows (same discs) "
-              "| unused after arrival | symbols per second with data / (R0 / β) |", "|---|---|---|---|---|---|"]
+        lines.append(
+            f"| {row['B'] / 1e3:g} | {e['diff'][0]:+.2f} ± {e['diff'][1]:.2f} (vs {e['vs']}) | "
+            f"{b[0]:.2f} ± {b[1]:.2f} | {g[0]:+.2f} ± {g[1]:.2f} |"
+        )
+    lines += [
+        "",
+        "Exact planner against the bound's relaxation (means over the test layouts; docs/baselines.md):",
+        "",
+        "| B (kHz) | seconds with data | without data, flown | dead seconds the relaxation allows (same discs) "
+        "| unused after arrival | symbols per second with data / (R0 / β) |",
+        "|---|---|---|---|---|---|",
+    ]
     for row in r["rows"]:
         a = row["account"]
-        lines.append(f"| {row['B'] / 1e3:g} | {a['data_s']:.1f} | {a['dead_s']:.1f} | {a['relaxed_dead_s']:.1f} | "
-                     f"{a['unused_s']:.1f} | {a['rate_share']:.2f} |")
+        lines.append(
+            f"| {row['B'] / 1e3:g} | {a['data_s']:.1f} | {a['dead_s']:.1f} | {a['relaxed_dead_s']:.1f} | "
+            f"{a['unused_s']:.1f} | {a['rate_share']:.2f} |"
+        )
     lines += ["", f"Wall time: {r['wall_s']:.0f} s"]
     return "\n".join(lines)
 

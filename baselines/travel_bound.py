@@ -36,7 +36,9 @@ def envelope_gains(curves) -> np.ndarray:
     for i, y in enumerate(c):
         hull = [0]  # upper hull (monotone chain) of the points (k, y_k)
         for k in range(1, len(y)):
-            while len(hull) >= 2 and (y[hull[-1]] - y[hull[-2]]) * (k - hull[-1]) <= (y[k] - y[hull[-1]]) * (hull[-1] - hull[-2]):
+            while len(hull) >= 2 and (y[hull[-1]] - y[hull[-2]]) * (k - hull[-1]) <= (y[k] - y[hull[-1]]) * (
+                hull[-1] - hull[-2]
+            ):
                 hull.pop()
             hull.append(k)
         env = np.interp(np.arange(len(y)), hull, y[hull])
@@ -132,5 +134,10 @@ def flight_account(trace: dict, keys, params: EnvParams) -> dict:
     relaxed = np.take_along_axis(dead_slots(pos, params), S[:, None], 1)[:, 0] * tau
     m = np.asarray(trace["m"])[:, -1].sum(-1)
     rate = peak_rate(params) / float(params.beta)
-    return {"data_s": data, "dead_s": flown - data, "unused_s": params.K * tau - flown, "relaxed_dead_s": relaxed,
-            "rate_share": m / np.maximum(data * rate, 1e-9)}
+    return {
+        "data_s": data,
+        "dead_s": flown - data,
+        "unused_s": params.K * tau - flown,
+        "relaxed_dead_s": relaxed,
+        "rate_share": m / np.maximum(data * rate, 1e-9),
+    }

@@ -26,7 +26,9 @@ def distance_matrix(dev_pos, q0, q_fin) -> np.ndarray:
 
 def path_length(order, dev_pos, q0, q_fin) -> float:
     """Length (metres) of the open path q0 -> devices in ``order`` -> q_fin."""
-    pts = np.concatenate([np.asarray(q0, float)[None], np.asarray(dev_pos, float)[list(order)], np.asarray(q_fin, float)[None]])
+    pts = np.concatenate(
+        [np.asarray(q0, float)[None], np.asarray(dev_pos, float)[list(order)], np.asarray(q_fin, float)[None]]
+    )
     return float(np.linalg.norm(np.diff(pts, axis=0), axis=-1).sum())
 
 
@@ -66,9 +68,7 @@ def _solve_batch(dev_pos, q0, q_fin, time_limit_ms) -> np.ndarray:
     return np.stack([solve_order(p, q0, q_fin, time_limit_ms) for p in dev_pos]).reshape(len(dev_pos), -1)
 
 
-def solve_orders(
-    dev_pos, q0, q_fin, time_limit_ms: int = DEFAULT_TIME_LIMIT_MS, workers: int = 2
-) -> np.ndarray:
+def solve_orders(dev_pos, q0, q_fin, time_limit_ms: int = DEFAULT_TIME_LIMIT_MS, workers: int = 2) -> np.ndarray:
     """Visiting orders (E, N) for a batch of layouts ``dev_pos`` (E, N, 2).
 
     Batches of at least ``PARALLEL_MIN_LAYOUTS`` layouts are split over ``workers`` processes
@@ -81,7 +81,9 @@ def solve_orders(
     from baselines.workers import map_chunks  # not at top level: the workers load this file without the package
 
     shared = {"q0": q0, "q_fin": q_fin, "time_limit_ms": time_limit_ms}
-    return map_chunks(Path(__file__), "_worker_batch", {"dev_pos": dev_pos}, shared, workers, desc="TSP tours")["orders"]
+    return map_chunks(Path(__file__), "_worker_batch", {"dev_pos": dev_pos}, shared, workers, desc="TSP tours")[
+        "orders"
+    ]
 
 
 def _worker_batch(dev_pos, q0, q_fin, time_limit_ms) -> dict:

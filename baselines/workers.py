@@ -28,8 +28,9 @@ def _npz_bytes(arrays: dict) -> bytes:
     return buf.getvalue()
 
 
-def map_chunks(module_file, function: str, batched: dict, shared: dict | None = None, workers: int = 2,
-               desc: str | None = None) -> dict:
+def map_chunks(
+    module_file, function: str, batched: dict, shared: dict | None = None, workers: int = 2, desc: str | None = None
+) -> dict:
     """Run ``function(**chunk, **shared)`` on ``workers`` chunks of the leading axis of ``batched``.
 
     ``function`` returns a dict of arrays with the same leading axis; the chunks' results are
@@ -41,8 +42,12 @@ def map_chunks(module_file, function: str, batched: dict, shared: dict | None = 
     n = len(next(iter(batched.values())))
     bounds = [(int(idx[0]), int(idx[-1]) + 1) for idx in np.array_split(np.arange(n), max(1, workers)) if len(idx)]
     procs = [
-        subprocess.Popen([sys.executable, __file__, str(module_file), function], stdin=subprocess.PIPE,
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        subprocess.Popen(
+            [sys.executable, __file__, str(module_file), function],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
         for _ in bounds
     ]
     bar = tqdm(total=n, desc=desc or function, unit="item", leave=False, dynamic_ncols=True)
@@ -60,8 +65,15 @@ def map_chunks(module_file, function: str, batched: dict, shared: dict | None = 
     for r in readers:
         r.start()
     for proc, (lo, hi) in zip(procs, bounds):  # all started first: their imports overlap
-        proc.stdin.write(_npz_bytes({**{k: v[lo:hi] for k, v in batched.items()}, **(shared or {}),
-                                     SHARED: np.array(sorted(shared or {}), dtype=str)}))
+        proc.stdin.write(
+            _npz_bytes(
+                {
+                    **{k: v[lo:hi] for k, v in batched.items()},
+                    **(shared or {}),
+                    SHARED: np.array(sorted(shared or {}), dtype=str),
+                }
+            )
+        )
         proc.stdin.close()
     outs = [proc.stdout.read() for proc in procs]
     for r in readers:
@@ -69,8 +81,10 @@ def map_chunks(module_file, function: str, batched: dict, shared: dict | None = 
     bar.close()
     for proc, err in zip(procs, errors):
         if proc.wait() != 0:
-            raise RuntimeError(f"worker {module_file}:{function} failed with exit code {proc.returncode}: "
-                               + (err[-1] if err else "no message"))
+            raise RuntimeError(
+                f"worker {module_file}:{function} failed with exit code {proc.returncode}: "
+                + (err[-1] if err else "no message")
+            )
     results = [np.load(io.BytesIO(out)) for out in outs]
     return {k: np.concatenate([r[k] for r in results]) for k in results[0].files}
 
@@ -89,7 +103,7 @@ def _main() -> None:
     n = len(next(iter(batched.values())))
     pieces = []
     for lo in range(0, n, PIECE):
-        pieces.append(getattr(module, function)(**{k: v[lo:lo + PIECE] for k, v in batched.items()}, **shared))
+        pieces.append(getattr(module, function)(**{k: v[lo : lo + PIECE] for k, v in batched.items()}, **shared))
         print(min(PIECE, n - lo), file=sys.stderr, flush=True)
     out = {k: np.concatenate([p[k] for p in pieces]) for k in pieces[0]}
     sys.stdout.buffer.write(_npz_bytes(out))

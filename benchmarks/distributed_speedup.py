@@ -35,28 +35,49 @@ def main():
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument("--out", default=str(Path(__file__).with_suffix(".json")))
     args = ap.parse_args()
-    grid = {"episodes": args.episodes, "seeds": list(range(args.seeds)), "policies": ["greedy", "tsp"],
-            "params": {"B": [5e3, 25e3]}}
+    grid = {
+        "episodes": args.episodes,
+        "seeds": list(range(args.seeds)),
+        "policies": ["greedy", "tsp"],
+        "params": {"B": [5e3, 25e3]},
+    }
     rows = []
     with tempfile.TemporaryDirectory() as d:
         d = Path(d)
         (d / "grid.json").write_text(json.dumps(grid))
         cmd = ["-m", "semuav_jax.cli.sweep", str(d / "grid.json"), "--out"]
-        for label, processes, devices in (("1 process, 1 device", 1, 1), ("1 process, 2 devices", 1, 2),
-                                          ("2 processes, 1 device each", 2, 1)):
+        for label, processes, devices in (
+            ("1 process, 1 device", 1, 1),
+            ("1 process, 2 devices", 1, 2),
+            ("2 processes, 1 device each", 2, 1),
+        ):
             out = d / label.replace(" ", "_").replace(",", "")
             t0 = time.perf_counter()
             if processes == 1:
-                p = subprocess.run([sys.executable, *cmd, str(out)], cwd=ROOT, env=environment(devices),
-                                   capture_output=True, text=True, check=False)
+                p = subprocess.run(
+                    [sys.executable, *cmd, str(out)],
+                    cwd=ROOT,
+                    env=environment(devices),
+                    capture_output=True,
+                    text=True,
+                    check=False,
+                )
                 codes = [p.returncode]
             else:
                 codes = wait_all(start([*cmd, str(out)], processes, timeout_s=60, devices=devices), 3600)
             wall = time.perf_counter() - t0
             assert codes == [0] * processes, f"{label}: exit codes {codes}"
-            rows.append({"run": label, "processes": processes, "devices": processes * devices, "wall_s": wall,
-                         "same_items_as_first": items(out) == items(d / rows[0]["run"].replace(" ", "_").replace(",", ""))
-                         if rows else True})
+            rows.append(
+                {
+                    "run": label,
+                    "processes": processes,
+                    "devices": processes * devices,
+                    "wall_s": wall,
+                    "same_items_as_first": items(out) == items(d / rows[0]["run"].replace(" ", "_").replace(",", ""))
+                    if rows
+                    else True,
+                }
+            )
     base = rows[0]["wall_s"]
     print(f"{'run':<28} {'wall s':>8} {'speed-up':>9} {'same items':>11}")
     for r in rows:

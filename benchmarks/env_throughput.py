@@ -32,10 +32,10 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from reference_numpy import NumpyEnv, params_dict  # noqa: E402
 
-from semuav_jax.params import make_params  # noqa: E402
-from semuav_jax.rollout import random_policy, random_policy_state, rollout  # noqa: E402
 from semuav_jax.curves import load_curves, synthetic_curves  # noqa: E402
 from semuav_jax.io import atomic_write  # noqa: E402
+from semuav_jax.params import make_params  # noqa: E402
+from semuav_jax.rollout import random_policy, random_policy_state, rollout  # noqa: E402
 from semuav_jax.sharding import shard_episodes  # noqa: E402
 
 

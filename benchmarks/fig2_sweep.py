@@ -44,8 +44,14 @@ def main():
     for r in rows:
         print(f"{r['policy']:>8} {r['episodes']:>9} {r['wall_s']:>8.1f}")
     print(f"total {total:.1f} s (compile, OR-Tools and {sum(r['episodes'] for r in rows) * params.K:,} env steps)")
-    result = {"devices": jax.device_count(), "layouts": args.layouts, "bandwidths": BANDWIDTHS,
-              "velocities": VELOCITIES, "rows": rows, "total_s": total}
+    result = {
+        "devices": jax.device_count(),
+        "layouts": args.layouts,
+        "bandwidths": BANDWIDTHS,
+        "velocities": VELOCITIES,
+        "rows": rows,
+        "total_s": total,
+    }
     atomic_write(args.out, json.dumps(result, indent=2).encode())
 
 

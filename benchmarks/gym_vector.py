@@ -91,9 +91,17 @@ def main():
         fmt = lambda k, w: f"{row[k]:>{w},.0f}" if k in row else f"{'-':>{w}}"
         up = f"{row['speed_up']:>8,.0f}x" if "speed_up" in row else f"{'-':>9}"
         print(f"{n:>6} {fmt('vector_env', 16)} {fmt('sb3_vec_env', 19)} {fmt('single_env_loop', 18)} {up}")
-    result = {"cpu_count": os.cpu_count(), "machine": platform.machine(), "jax": jax.__version__,
-              "gymnasium": gymnasium.__version__, "loop": loop_name, "seconds": args.seconds, "repeats": args.repeats,
-              "load_average_at_end": os.getloadavg(), "rows": rows}
+    result = {
+        "cpu_count": os.cpu_count(),
+        "machine": platform.machine(),
+        "jax": jax.__version__,
+        "gymnasium": gymnasium.__version__,
+        "loop": loop_name,
+        "seconds": args.seconds,
+        "repeats": args.repeats,
+        "load_average_at_end": os.getloadavg(),
+        "rows": rows,
+    }
     atomic_write(args.out, json.dumps(result, indent=2).encode())
     print(f"wrote {args.out}")
 

@@ -45,13 +45,28 @@ for r in range(args.repeats):
     t3 = time.perf_counter()
     b = travel_bound(keys, params)
     t4 = time.perf_counter()
-    rows.append({"plan_s": t1 - t0, "fly_s": t2 - t1, "open_loop_s": t2 - t0, "exact_s": t3 - t2, "bound_s": t4 - t3,
-                 "mean_psnr": float(m["mean_psnr"].mean()), "exact_mean_psnr": float(e["mean_psnr"].mean()),
-                 "bound": float(b.mean()), "arrived": float(m["arrived"].mean()), "exact_arrived": float(e["arrived"].mean())})
+    rows.append(
+        {
+            "plan_s": t1 - t0,
+            "fly_s": t2 - t1,
+            "open_loop_s": t2 - t0,
+            "exact_s": t3 - t2,
+            "bound_s": t4 - t3,
+            "mean_psnr": float(m["mean_psnr"].mean()),
+            "exact_mean_psnr": float(e["mean_psnr"].mean()),
+            "bound": float(b.mean()),
+            "arrived": float(m["arrived"].mean()),
+            "exact_arrived": float(e["arrived"].mean()),
+        }
+    )
 print(f"{args.layouts} layouts, B = 25 kHz, {args.workers} workers")
-print("| repeat | open loop: plan (s) | fly (s) | total (s) | exact planner (s) | bound (s) | PSNR open loop / exact / bound (dB) |")
+print(
+    "| repeat | open loop: plan (s) | fly (s) | total (s) | exact planner (s) | bound (s) | PSNR open loop / exact / bound (dB) |"
+)
 print("|---|---|---|---|---|---|---|")
 for i, r in enumerate(rows):
-    print(f"| {i} | {r['plan_s']:.1f} | {r['fly_s']:.1f} | {r['open_loop_s']:.1f} | {r['exact_s']:.1f} | {r['bound_s']:.1f} | "
-          f"{r['mean_psnr']:.2f} / {r['exact_mean_psnr']:.2f} / {r['bound']:.2f} |")
+    print(
+        f"| {i} | {r['plan_s']:.1f} | {r['fly_s']:.1f} | {r['open_loop_s']:.1f} | {r['exact_s']:.1f} | {r['bound_s']:.1f} | "
+        f"{r['mean_psnr']:.2f} / {r['exact_mean_psnr']:.2f} / {r['bound']:.2f} |"
+    )
 atomic_write(args.out, json.dumps({"layouts": args.layouts, "workers": args.workers, "runs": rows}, indent=2).encode())

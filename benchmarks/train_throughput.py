@@ -30,8 +30,12 @@ def replay_buffer(name: str, config: DDQNConfig):
         return ring_buffer(config.buffer_size, config.batch_size)
     import flashbax
 
-    return flashbax.make_item_buffer(max_length=config.buffer_size, min_length=config.batch_size,
-                                     sample_batch_size=config.batch_size, add_batches=True)
+    return flashbax.make_item_buffer(
+        max_length=config.buffer_size,
+        min_length=config.batch_size,
+        sample_batch_size=config.batch_size,
+        add_batches=True,
+    )
 
 
 def measure(seeds: int, chunks: int, preset: str, buffer: str = "ring") -> dict:
@@ -51,8 +55,16 @@ def measure(seeds: int, chunks: int, preset: str, buffer: str = "ring") -> dict:
     dt = time.perf_counter() - t0
     steps = seeds * chunks * config.steps_per_chunk * config.num_envs
     updates = seeds * chunks * config.steps_per_chunk * config.updates_per_step
-    return {"preset": preset, "buffer": buffer, "seeds": seeds, "env_steps": steps, "seconds": dt, "env_steps_per_s": steps / dt,
-            "updates_per_s": updates / dt, "first_call_s": compile_s}
+    return {
+        "preset": preset,
+        "buffer": buffer,
+        "seeds": seeds,
+        "env_steps": steps,
+        "seconds": dt,
+        "env_steps_per_s": steps / dt,
+        "updates_per_s": updates / dt,
+        "first_call_s": compile_s,
+    }
 
 
 def main():
@@ -60,17 +72,33 @@ def main():
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 3])
     ap.add_argument("--chunks", type=int, default=4, help="chunks per timed segment")
     ap.add_argument("--presets", nargs="+", choices=sorted(PRESETS), default=["default", "paper"])
-    ap.add_argument("--buffers", nargs="+", choices=["ring", "flashbax"], default=["ring"],
-                    help="replay memories to time (flashbax: pip install flashbax)")
+    ap.add_argument(
+        "--buffers",
+        nargs="+",
+        choices=["ring", "flashbax"],
+        default=["ring"],
+        help="replay memories to time (flashbax: pip install flashbax)",
+    )
     ap.add_argument("--out", default=str(Path(__file__).with_suffix(".json")))
     args = ap.parse_args()
     rows = [measure(s, args.chunks, p, b) for p in args.presets for b in args.buffers for s in args.seeds]
-    print(f"{'preset':>8} {'buffer':>8} {'seeds':>5} {'env steps/s':>12} {'updates/s':>10} {'timed s':>8} {'1st call s':>10}")
+    print(
+        f"{'preset':>8} {'buffer':>8} {'seeds':>5} {'env steps/s':>12} {'updates/s':>10} {'timed s':>8} {'1st call s':>10}"
+    )
     for r in rows:
-        print(f"{r['preset']:>8} {r['buffer']:>8} {r['seeds']:>5} {r['env_steps_per_s']:>12,.0f} {r['updates_per_s']:>10,.0f} "
-              f"{r['seconds']:>8.1f} {r['first_call_s']:>10.1f}")
-    info = {"config": DDQNConfig().to_dict(), "presets": PRESETS, "cpu_count": os.cpu_count(),
-            "load_avg": os.getloadavg(), "platform": platform.platform(), "jax": jax.__version__, "rows": rows}
+        print(
+            f"{r['preset']:>8} {r['buffer']:>8} {r['seeds']:>5} {r['env_steps_per_s']:>12,.0f} {r['updates_per_s']:>10,.0f} "
+            f"{r['seconds']:>8.1f} {r['first_call_s']:>10.1f}"
+        )
+    info = {
+        "config": DDQNConfig().to_dict(),
+        "presets": PRESETS,
+        "cpu_count": os.cpu_count(),
+        "load_avg": os.getloadavg(),
+        "platform": platform.platform(),
+        "jax": jax.__version__,
+        "rows": rows,
+    }
     atomic_write(args.out, json.dumps(info, indent=2).encode())
     print(f"wrote {args.out}")
 

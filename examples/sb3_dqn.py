@@ -53,10 +53,20 @@ def main() -> None:
 
     torch.set_num_threads(1)  # a 2 x 64 MLP: one thread is the fastest
     params = {"B": args.B, "reward_mode": "gain", "actions": "waypoint"}
-    model = DQN("MlpPolicy", SemUAVVecEnv(num_envs=args.envs, **params), learning_rate=2.5e-4,
-                buffer_size=min(args.timesteps, 200_000), learning_starts=5_000, train_freq=1, gradient_steps=2,
-                exploration_fraction=0.3, target_update_interval=500, gamma=0.99,
-                policy_kwargs={"net_arch": [64, 64]}, seed=args.seed)
+    model = DQN(
+        "MlpPolicy",
+        SemUAVVecEnv(num_envs=args.envs, **params),
+        learning_rate=2.5e-4,
+        buffer_size=min(args.timesteps, 200_000),
+        learning_starts=5_000,
+        train_freq=1,
+        gradient_steps=2,
+        exploration_fraction=0.3,
+        target_update_interval=500,
+        gamma=0.99,
+        policy_kwargs={"net_arch": [64, 64]},
+        seed=args.seed,
+    )
     t0 = time.perf_counter()
     model.learn(total_timesteps=args.timesteps)
     train_s = time.perf_counter() - t0
@@ -69,12 +79,15 @@ def main() -> None:
     rows = {
         f"SB3 DQN, {args.timesteps} steps": score(test, dqn, args.episodes),
         "SB3 DQN behind the shield": score(VectorShieldWrapper(test), dqn, args.episodes),
-        "our DDQN (shipped, shield)": score(test, lambda obs: np.asarray(agent_act(test.state, test.env_params)),
-                                            args.episodes),
+        "our DDQN (shipped, shield)": score(
+            test, lambda obs: np.asarray(agent_act(test.state, test.env_params)), args.episodes
+        ),
         "random waypoint actions": score(test, lambda obs: rng.integers(0, 16, args.episodes), args.episodes),
     }
-    print(f"B = {args.B / 1e3:g} kHz, {args.episodes} test layouts; DQN trained on {args.envs} envs "
-          f"in {train_s:.0f} s ({args.timesteps / train_s:,.0f} env steps/s)")
+    print(
+        f"B = {args.B / 1e3:g} kHz, {args.episodes} test layouts; DQN trained on {args.envs} envs "
+        f"in {train_s:.0f} s ({args.timesteps / train_s:,.0f} env steps/s)"
+    )
     print("| policy | mean PSNR (dB) | arrived |\n|---|---|---|")
     for name, (psnr, arr) in rows.items():
         print(f"| {name} | {psnr:.2f} | {arr:.0%} |")

@@ -50,7 +50,9 @@ def validate_curves(C, meta: dict | None = None, where: str = "curves") -> None:
     if not np.all(np.isfinite(C)):
         raise ValueError(f"{where}: C contains non-finite values (NaN or inf); every PSNR must be finite")
     if np.any(C < 0):
-        raise ValueError(f"{where}: C holds a PSNR below 0 dB ({float(C.min()):g}); a PSNR of an 8-bit image is >= 0 dB")
+        raise ValueError(
+            f"{where}: C holds a PSNR below 0 dB ({float(C.min()):g}); a PSNR of an 8-bit image is >= 0 dB"
+        )
     if meta is not None:
         missing = [k for k in REQUIRED_META if k not in meta]
         if missing:

@@ -30,13 +30,20 @@ class DistributedError(Exception):
 def add_options(parser) -> None:
     """The distributed options of every command (``parser``: an argparse parser)."""
     g = parser.add_argument_group("several processes or hosts (docs/scaling.md)")
-    g.add_argument("--coordinator", default=None, metavar="HOST:PORT",
-                   help="process 0's address and a free port; 'auto': the cluster's environment (Slurm); "
-                        "default: one process")
+    g.add_argument(
+        "--coordinator",
+        default=None,
+        metavar="HOST:PORT",
+        help="process 0's address and a free port; 'auto': the cluster's environment (Slurm); default: one process",
+    )
     g.add_argument("--num-processes", type=int, default=None, help="processes in the run (with --coordinator)")
     g.add_argument("--process-id", type=int, default=None, help="this process's rank, 0 .. N-1 (with --coordinator)")
-    g.add_argument("--dist-timeout", type=float, default=DEFAULT_TIMEOUT_S,
-                   help="seconds a start or a silent peer may take before the run ends (default: %(default)s)")
+    g.add_argument(
+        "--dist-timeout",
+        type=float,
+        default=DEFAULT_TIMEOUT_S,
+        help="seconds a start or a silent peer may take before the run ends (default: %(default)s)",
+    )
 
 
 def check_options(args) -> None:
@@ -55,8 +62,10 @@ def check_options(args) -> None:
     if args.num_processes is None or args.process_id is None:
         raise DistributedError("--coordinator HOST:PORT needs --num-processes and --process-id")
     if args.num_processes < 1 or not 0 <= args.process_id < args.num_processes:
-        raise DistributedError(f"--process-id must be in 0 .. {args.num_processes - 1} and --num-processes >= 1, "
-                               f"got {args.process_id} of {args.num_processes}")
+        raise DistributedError(
+            f"--process-id must be in 0 .. {args.num_processes - 1} and --num-processes >= 1, "
+            f"got {args.process_id} of {args.num_processes}"
+        )
 
 
 def initialize(args) -> None:
@@ -75,8 +84,12 @@ def initialize(args) -> None:
     # the runtime's own limits are a backstop at twice ours: when it gives up it aborts with a long log
     kw = {"initialization_timeout": 2 * t, "heartbeat_timeout_seconds": t, "shutdown_timeout_seconds": t}
     if args.coordinator != "auto":
-        kw.update(coordinator_address=args.coordinator, num_processes=args.num_processes, process_id=args.process_id,
-                  coordinator_bind_address=args.coordinator)
+        kw.update(
+            coordinator_address=args.coordinator,
+            num_processes=args.num_processes,
+            process_id=args.process_id,
+            coordinator_bind_address=args.coordinator,
+        )
     where = args.coordinator if args.coordinator != "auto" else "the cluster's coordinator"
     message = f"could not start the distributed run at {where}: not every process joined within {args.dist_timeout:g} s"
     timer = threading.Timer(args.dist_timeout, abort, (message,))

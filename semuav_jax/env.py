@@ -218,8 +218,12 @@ class SemUAVEnv(environment.Environment[EnvState, EnvParams]):
     def step_env(self, key, state: EnvState, action, params: EnvParams):
         new, rew = transition(key, state, to_accel(self.actions, action, state, params), params)
         in_range = (action >= 0) & (action < num_actions(self.actions, params))
-        info = {"discount": self.discount(new, params), "arrived": new.arrived, "delay": new.delay,
-                "valid": params_valid(params) & in_range}
+        info = {
+            "discount": self.discount(new, params),
+            "arrived": new.arrived,
+            "delay": new.delay,
+            "valid": params_valid(params) & in_range,
+        }
         return self.get_obs(new, params), new, rew, new.done, info
 
 

@@ -9,11 +9,11 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.collections import LineCollection  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.collections import LineCollection  # noqa: E402
 
-from semuav_jax.stats import wilson_interval  # noqa: E402
 from semuav_jax.io import atomic_write  # noqa: E402
+from semuav_jax.stats import wilson_interval  # noqa: E402
 
 STYLE = {
     "agent": dict(color="C3", marker="o", label="DDQN (ours, mean of seeds)"),
@@ -55,13 +55,22 @@ def fig2a(r: dict, path):
             cov = [row[name]["coverage"] for row in rows]
         ax.errorbar(B, y, yerr=e, capsize=3, **st)
         ax2.plot(B, cov, **{k: v for k, v in st.items() if k != "label"})
-    ax.set(xlabel="device bandwidth B (kHz)", ylabel="mean PSNR over the N devices (dB)",
-           title=f"(a) {r['layouts']} test layouts; DDQN: {r['seeds']} seeds, CI across seeds")
+    ax.set(
+        xlabel="device bandwidth B (kHz)",
+        ylabel="mean PSNR over the N devices (dB)",
+        title=f"(a) {r['layouts']} test layouts; DDQN: {r['seeds']} seeds, CI across seeds",
+    )
     ax2.set(xlabel="device bandwidth B (kHz)", ylabel="devices covered (of N = 10)", title="coverage")
     for a in (ax, ax2):
         a.grid(alpha=0.3)
-    fig.legend(*ax.get_legend_handles_labels(), fontsize=9, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=6,
-               frameon=False)  # below the panels: it hides no data whatever the grid
+    fig.legend(
+        *ax.get_legend_handles_labels(),
+        fontsize=9,
+        loc="upper center",
+        bbox_to_anchor=(0.5, 0.0),
+        ncol=6,
+        frameon=False,
+    )  # below the panels: it hides no data whatever the grid
     save_figure(fig, path)
 
 
@@ -73,7 +82,9 @@ def fig2b(r: dict, path):
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.2), gridspec_kw={"width_ratios": [3, 2]})
     for name in (n for n in BANDS if n == "agent" or n in row):
         m, e = row["agent"] if name == "agent" else row[name]["mean_psnr"]
-        ax.axhline(m, color=STYLE[name]["color"], ls=STYLE[name].get("ls", "-"), label=STYLE[name]["label"] + " (own speed)")
+        ax.axhline(
+            m, color=STYLE[name]["color"], ls=STYLE[name].get("ls", "-"), label=STYLE[name]["label"] + " (own speed)"
+        )
         ax.axhspan(m - e, m + e, color=STYLE[name]["color"], alpha=0.15)
     n = None
     for name in ("greedy", "tsp"):
@@ -88,9 +99,15 @@ def fig2b(r: dict, path):
         yerr = np.clip(np.stack([arr - lo, hi - arr]), 0.0, None)
         ax2.errorbar(v, arr, yerr=yerr, capsize=3, color=st["color"], marker=st["marker"])
     ax.axvline(8.9, color="0.5", ls=":", lw=1)
-    ax.set(xlabel="baseline speed v_b (m/s)", ylabel="mean PSNR (dB)", title="(b) B = 25 kHz (dotted: the paper's 8.9 m/s)")
-    ax2.set(xlabel="baseline speed v_b (m/s)", ylabel="arrival rate", ylim=(min(0.9, ax2.get_ylim()[0]), 1.005),
-            title=f"arrival, Wilson 95 % intervals over {n} layouts")
+    ax.set(
+        xlabel="baseline speed v_b (m/s)", ylabel="mean PSNR (dB)", title="(b) B = 25 kHz (dotted: the paper's 8.9 m/s)"
+    )
+    ax2.set(
+        xlabel="baseline speed v_b (m/s)",
+        ylabel="arrival rate",
+        ylim=(min(0.9, ax2.get_ylim()[0]), 1.005),
+        title=f"arrival, Wilson 95 % intervals over {n} layouts",
+    )
     for a in (ax, ax2):
         a.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="lower center", ncol=2)
@@ -103,7 +120,9 @@ def fig2c(paths: dict, params, path):
     names = [n for n in ("agent", "tsp v_b*", "greedy-dwell", "tsp-dwell", "planner", "exact planner") if n in paths]
     fig, axes = plt.subplots(2, 3, figsize=(17, 6.3), sharex=True, sharey=True)
     radius = float(np.sqrt(float(params.D_com) ** 2 - float(params.H) ** 2))
-    pts = np.concatenate([np.array([[0.0, 0.0], [float(params.Lx), float(params.Ly)]])] + [paths[n]["q"] for n in names])
+    pts = np.concatenate(
+        [np.array([[0.0, 0.0], [float(params.Lx), float(params.Ly)]])] + [paths[n]["q"] for n in names]
+    )
     lo, hi = pts.min(0) - 10.0, pts.max(0) + 10.0  # the UAV may leave the area (docs/model.md eq. 3.3)
     norm = plt.Normalize(0.0, float(params.v_max))
     for ax, name in zip(axes.ravel(), names):
@@ -123,16 +142,21 @@ def fig2c(paths: dict, params, path):
         ax.plot(*np.asarray(params.q0), "ko", ms=5)
         ax.plot(*np.asarray(params.q_fin), "k*", ms=10)
         label = "DDQN (ours), seed 0" if name == "agent" else STYLE[name]["label"]
-        ax.set_title(f"{label}: {p['mean_psnr']:.1f} dB, {p['coverage']:.0f} covered, "
-                     f"{p['mission_time']:.0f} s", fontsize=9)
+        ax.set_title(
+            f"{label}: {p['mean_psnr']:.1f} dB, {p['coverage']:.0f} covered, {p['mission_time']:.0f} s", fontsize=9
+        )
         ax.set(xlim=(lo[0], hi[0]), ylim=(lo[1], hi[1]), aspect="equal")
     for ax in axes[-1]:
         ax.set_xlabel("x (m)")
     for ax in axes[:, 0]:
         ax.set_ylabel("y (m)")
     fig.colorbar(lc, ax=axes, shrink=0.8, label="speed (m/s)")
-    fig.suptitle(f"(c) paper layout, B = {float(params.B) / 1e3:g} kHz: rings and labels give the seconds in range "
-                 f"of each served device ({radius:.0f} m discs; x: not served)", fontsize=10, y=0.99)
+    fig.suptitle(
+        f"(c) paper layout, B = {float(params.B) / 1e3:g} kHz: rings and labels give the seconds in range "
+        f"of each served device ({radius:.0f} m discs; x: not served)",
+        fontsize=10,
+        y=0.99,
+    )
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
     plt.close(fig)

@@ -80,7 +80,9 @@ class SemUAVGymEnv(gymnasium.Env):
         self._key = None
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**32):
+        if seed is not None and (
+            isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**32
+        ):
             raise ValueError(f"seed must be an integer in [0, 2**32) (JAX keys alias seeds modulo 2**32), got {seed!r}")
         super().reset(seed=seed)
         if seed is not None:
@@ -117,5 +119,8 @@ class SemUAVGymEnv(gymnasium.Env):
 
 
 if ENV_ID not in gymnasium.registry:
-    gymnasium.register(id=ENV_ID, entry_point="semuav_jax.gym_adapter:SemUAVGymEnv",
-                       vector_entry_point="semuav_jax.gym_vector:SemUAVVectorEnv")
+    gymnasium.register(
+        id=ENV_ID,
+        entry_point="semuav_jax.gym_adapter:SemUAVGymEnv",
+        vector_entry_point="semuav_jax.gym_vector:SemUAVVectorEnv",
+    )

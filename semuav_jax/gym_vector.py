@@ -36,8 +36,11 @@ def _vector_step(keys, states, actions, autoreset, params, mode, same_step):
 
     def with_resets(_):
         k_r, obs_r, s_r = _vector_reset(k_s if same_step else keys, params)
-        return jax.tree.map(lambda a, b: jnp.where(pick.reshape(pick.shape + (1,) * (a.ndim - 1)), a, b),
-                            (k_r, obs_r, s_r), (k_s, obs_s, s_s))
+        return jax.tree.map(
+            lambda a, b: jnp.where(pick.reshape(pick.shape + (1,) * (a.ndim - 1)), a, b),
+            (k_r, obs_r, s_r),
+            (k_s, obs_s, s_s),
+        )
 
     key, obs, state = jax.lax.cond(pick.any(), with_resets, lambda _: (k_s, obs_s, s_s), None)
     if not same_step:
@@ -56,15 +59,20 @@ def _batch_info(info: dict, metrics: dict, live: np.ndarray, ended: np.ndarray) 
     for k, v in info.items() if live.any() else ():
         out |= {k: np.where(live, v, np.zeros_like(v)), f"_{k}": live}
     for k, v in metrics.items() if ended.any() else ():  # "arrived" and "valid" already in: updated
-        out |= {k: np.where(ended, v, out[k])} if k in out else {k: np.where(ended, v, np.zeros_like(v)),
-                                                                         f"_{k}": ended}
+        out |= (
+            {k: np.where(ended, v, out[k])} if k in out else {k: np.where(ended, v, np.zeros_like(v)), f"_{k}": ended}
+        )
     return out
 
 
 def _seeds(seed, n: int) -> np.ndarray:
     """(n,) uint32 seeds: ``seed + i`` for an int (as ``SyncVectorEnv``), or a list of n ints."""
     s = [seed + i for i in range(n)] if isinstance(seed, (int, np.integer)) else seed
-    if not isinstance(s, (list, tuple)) or len(s) != n or not all(isinstance(x, (int, np.integer)) and 0 <= x < SEED_LIMIT for x in s):
+    if (
+        not isinstance(s, (list, tuple))
+        or len(s) != n
+        or not all(isinstance(x, (int, np.integer)) and 0 <= x < SEED_LIMIT for x in s)
+    ):
         raise ValueError(f"seed must be an int in [0, 2**32 - num_envs] or a list of num_envs such ints, got {seed!r}")
     return np.asarray(s, np.uint32)
 
@@ -87,10 +95,20 @@ class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
     ``info["final_obs"]`` / ``info["final_info"]``, as Gymnasium's ``SyncVectorEnv`` does.
     """
 
-    metadata: ClassVar[dict] = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"], "render_fps": 10}
+    metadata: ClassVar[dict] = {
+        "autoreset_mode": AutoresetMode.NEXT_STEP,
+        "render_modes": ["rgb_array"],
+        "render_fps": 10,
+    }
 
-    def __init__(self, num_envs: int = 1, actions: str = "table", render_mode: str | None = None,
-                 autoreset_mode: AutoresetMode = AutoresetMode.NEXT_STEP, **params):
+    def __init__(
+        self,
+        num_envs: int = 1,
+        actions: str = "table",
+        render_mode: str | None = None,
+        autoreset_mode: AutoresetMode = AutoresetMode.NEXT_STEP,
+        **params,
+    ):
         if autoreset_mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
             raise ValueError(f"autoreset_mode must be AutoresetMode.NEXT_STEP or SAME_STEP, got {autoreset_mode!r}")
         self.metadata = self.metadata | {"autoreset_mode": autoreset_mode}
@@ -136,8 +154,12 @@ class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
                 final = np.full(self.num_envs, None, object)
                 for i in np.flatnonzero(term):
                     final[i] = final_obs[i]
-                infos |= {"final_obs": final, "_final_obs": term, "final_info": _batch_info(info, metrics, term, term),
-                          "_final_info": term}
+                infos |= {
+                    "final_obs": final,
+                    "_final_obs": term,
+                    "final_info": _batch_info(info, metrics, term, term),
+                    "_final_info": term,
+                }
         else:
             infos = _batch_info(info, metrics, ~reset, term)
             self._autoreset = term
@@ -165,5 +187,7 @@ class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
         from semuav_jax.render import rgb_frame
 
         states = jax.device_get(self.state)
-        return tuple(rgb_frame(jax.tree.map(lambda x, i=i: x[i], states), self.env_params, np.asarray(self._trails[i]))
-                     for i in range(self.num_envs))
+        return tuple(
+            rgb_frame(jax.tree.map(lambda x, i=i: x[i], states), self.env_params, np.asarray(self._trails[i]))
+            for i in range(self.num_envs)
+        )

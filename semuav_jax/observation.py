@@ -22,7 +22,9 @@ def obs_bounds(params: EnvParams):
     glob = jnp.stack([reach, reach, one, one, one, one, one, reach, reach])
     dev = jnp.stack([reach, reach, one, one, one])
     high = jnp.concatenate([glob, jnp.tile(dev, params.N)])
-    low = high * jnp.concatenate([-jnp.ones(6), jnp.zeros(1), -jnp.ones(2), jnp.tile(jnp.array([-1.0, -1, 0, 0, 0]), params.N)])
+    low = high * jnp.concatenate(
+        [-jnp.ones(6), jnp.zeros(1), -jnp.ones(2), jnp.tile(jnp.array([-1.0, -1, 0, 0, 0]), params.N)]
+    )
     return low, high
 
 

@@ -7,9 +7,9 @@ first dimension of ``device_pos`` and the number of images is the first dimensio
 
 from __future__ import annotations
 
-import numpy as np
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 
 from semuav_jax.curves import PSNRCurves, load_curves, validate_curves
@@ -133,8 +133,25 @@ _STATIC = ("K", "M", "levels", "reward_mode", "layout")
 
 # (name, lower bound, inclusive?) for the positive scalars; checked on every entry of a sweep.
 _POSITIVE = (
-    "Lx", "Ly", "tau", "H", "P_n", "noise", "B", "r_arr", "a_max", "v_max",
-    "P_b", "B_b", "L_cmd", "beta", "f_c", "c", "eps", "los_a", "los_b",
+    "Lx",
+    "Ly",
+    "tau",
+    "H",
+    "P_n",
+    "noise",
+    "B",
+    "r_arr",
+    "a_max",
+    "v_max",
+    "P_b",
+    "B_b",
+    "L_cmd",
+    "beta",
+    "f_c",
+    "c",
+    "eps",
+    "los_a",
+    "los_b",
 )
 _NON_NEGATIVE = ("proc_max", "bs_h", "r_g", "P_miss", "kappa_d", "kappa_c", "airspace_margin", "eta_los", "eta_nlos")
 _VECTORS = ("C", "device_pos", "device_img", "q0", "q_fin", "bs_pos")
@@ -203,8 +220,9 @@ def validate_params(params: EnvParams) -> None:
     for name in _SQUARED:
         v = vals[name]
         if v is not None and not np.all(np.abs(v) < SQUARE_MAX):
-            raise ValueError(f"{name} must be below {SQUARE_MAX:.1e} in magnitude (its square must be finite in "
-                             f"float32), got {v}")
+            raise ValueError(
+                f"{name} must be below {SQUARE_MAX:.1e} in magnitude (its square must be finite in float32), got {v}"
+            )
     H, D = vals["H"], vals["D_com"]
     if H is not None and D is not None and not np.all(D > H):
         raise ValueError(

@@ -25,14 +25,16 @@ def ground_range(params: EnvParams) -> float:
 
 def view_limits(params: EnvParams, trails=()) -> tuple[np.ndarray, np.ndarray]:
     """(lo, hi) corners that show the area, q0, q_fin and every point of ``trails``, 20 m of margin."""
-    pts = [np.array([[0.0, 0.0], [float(params.Lx), float(params.Ly)]]), np.asarray(params.q0)[None],
-           np.asarray(params.q_fin)[None]] + [np.asarray(t).reshape(-1, 2) for t in trails]
+    pts = [
+        np.array([[0.0, 0.0], [float(params.Lx), float(params.Ly)]]),
+        np.asarray(params.q0)[None],
+        np.asarray(params.q_fin)[None],
+    ] + [np.asarray(t).reshape(-1, 2) for t in trails]
     pts = np.concatenate(pts)
     return pts.min(0) - 20.0, pts.max(0) + 20.0
 
 
-def draw(ax, params: EnvParams, dev_pos, m, x, trail, t: int, mean_psnr: float, title: str | None = None,
-         limits=None):
+def draw(ax, params: EnvParams, dev_pos, m, x, trail, t: int, mean_psnr: float, title: str | None = None, limits=None):
     """Draw one moment on ``ax``: ``dev_pos`` (N, 2), ``m`` (N,) symbols received, ``x`` (N,) bool
     transmitting, ``trail`` (T, 2) the UAV's positions up to now (last: where it is), slot ``t``."""
     dev_pos, share = np.asarray(dev_pos), np.clip(np.asarray(m) / float(params.M), 0.0, 1.0)
@@ -43,8 +45,18 @@ def draw(ax, params: EnvParams, dev_pos, m, x, trail, t: int, mean_psnr: float, 
         ax.add_patch(Circle(d, radius, color=SHARE_CMAP(SHARE_NORM(s)), alpha=0.3 + 0.3 * tx, lw=0, zorder=1))
         if tx:  # an active link: the UAV is in range and receiving from this device in slot t
             ax.plot([d[0], trail[-1, 0]], [d[1], trail[-1, 1]], color="C1", lw=0.8, zorder=2)
-    ax.scatter(dev_pos[:, 0], dev_pos[:, 1], c=share, cmap=SHARE_CMAP, norm=SHARE_NORM, s=28, marker="s",
-               edgecolors=np.where(x, "C1", "k"), linewidths=np.where(x, 1.6, 0.6), zorder=3)
+    ax.scatter(
+        dev_pos[:, 0],
+        dev_pos[:, 1],
+        c=share,
+        cmap=SHARE_CMAP,
+        norm=SHARE_NORM,
+        s=28,
+        marker="s",
+        edgecolors=np.where(x, "C1", "k"),
+        linewidths=np.where(x, 1.6, 0.6),
+        zorder=3,
+    )
     ax.add_patch(Circle(np.asarray(params.q_fin), float(params.r_arr), fill=False, color="k", lw=0.8, zorder=2))
     ax.plot(*np.asarray(params.q0), "ko", ms=4, zorder=3)
     ax.plot(*np.asarray(params.q_fin), "k*", ms=9, zorder=3)
@@ -53,7 +65,9 @@ def draw(ax, params: EnvParams, dev_pos, m, x, trail, t: int, mean_psnr: float, 
     lo, hi = view_limits(params, [trail]) if limits is None else limits
     ax.set(xlim=(lo[0], hi[0]), ylim=(lo[1], hi[1]), aspect="equal")
     ax.tick_params(labelsize=7)
-    clock = f"t = {t * float(params.tau):5.1f} s of {params.K * float(params.tau):.0f} s   mean PSNR {mean_psnr:5.2f} dB"
+    clock = (
+        f"t = {t * float(params.tau):5.1f} s of {params.K * float(params.tau):.0f} s   mean PSNR {mean_psnr:5.2f} dB"
+    )
     ax.set_title(clock if title is None else f"{title}\n{clock}", fontsize=8)
 
 

@@ -23,8 +23,10 @@ def reward(prev, new, params: EnvParams):
         r_c = jnp.sum(x * new.phi) / (jnp.sum(x) + params.eps)
     else:
         r_c = params.kappa_c * jnp.sum(new.phi - prev.phi)
-    r_d = params.kappa_d * (distance_to_goal(prev.q, params) - distance_to_goal(new.q, params)) / (
-        params.v_max * params.tau
+    r_d = (
+        params.kappa_d
+        * (distance_to_goal(prev.q, params) - distance_to_goal(new.q, params))
+        / (params.v_max * params.tau)
     )
     r_g = jnp.where(new.arrived, params.r_g, 0.0)
     r_miss = jnp.where(new.done & ~new.arrived, -params.P_miss, 0.0)

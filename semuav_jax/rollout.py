@@ -51,7 +51,9 @@ def _slot(policy: Policy, params: EnvParams, trace: bool):
 
 def _check_valid(metrics) -> None:
     if not isinstance(metrics["valid"], jax.core.Tracer) and not bool(jnp.all(metrics["valid"])):
-        raise ValueError("the simulation left float32 (a rate, power or return overflowed): check the parameters' scale")
+        raise ValueError(
+            "the simulation left float32 (a rate, power or return overflowed): check the parameters' scale"
+        )
 
 
 def episode(policy: Policy, key, params: EnvParams, policy_state=None, init_state=None, trace=False):
@@ -62,8 +64,9 @@ def episode(policy: Policy, key, params: EnvParams, policy_state=None, init_stat
     k_reset, k_steps = jax.random.split(key)
     state = reset_state(k_reset, params) if init_state is None else init_state
     # unroll=2 lets XLA fuse across two slots: ~15 % faster on CPU (docs/performance.md)
-    (final, ps), tr = jax.lax.scan(_slot(policy, params, trace), (state, policy_state), delay_draws(k_steps, params),
-                                   unroll=2)
+    (final, ps), tr = jax.lax.scan(
+        _slot(policy, params, trace), (state, policy_state), delay_draws(k_steps, params), unroll=2
+    )
     metrics = episode_metrics(final, params)
     if hasattr(ps, "episode_metrics"):  # a policy may report its own (e.g. the shield share)
         metrics = metrics | ps.episode_metrics()
@@ -125,7 +128,7 @@ def rollout_replanned(policy: Policy, keys, params: EnvParams, replan: Callable,
     ps, parts = None, []
     for t0 in range(0, params.K, int(every)):
         ps = replan(states, ps)
-        states, ps, tr = _segment(policy, states, ps, draws[:, t0:t0 + int(every)], params, trace)
+        states, ps, tr = _segment(policy, states, ps, draws[:, t0 : t0 + int(every)], params, trace)
         parts.append(tr)
     metrics = jax.vmap(episode_metrics, (0, None))(states, params)
     _check_valid(metrics)

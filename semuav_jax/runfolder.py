@@ -29,8 +29,12 @@ def _read_marker(folder: Path) -> dict | None:
         m = json.loads((folder / MARKER).read_text())
     except (OSError, ValueError):
         return None
-    if not (isinstance(m, dict) and m.get("format") == FORMAT and isinstance(m.get("files"), list)
-            and all(isinstance(f, str) for f in m["files"])):
+    if not (
+        isinstance(m, dict)
+        and m.get("format") == FORMAT
+        and isinstance(m.get("files"), list)
+        and all(isinstance(f, str) for f in m["files"])
+    ):
         return None
     return m
 
@@ -106,10 +110,16 @@ class RunFolder:
             marker = _read_marker(path)  # again, under the lock
             if marker is None:
                 cls._refuse_foreign(path, adopt, what)
-                marker = {"format": FORMAT, "kind": kind, "run_id": secrets.token_hex(8),
-                          "files": sorted(n for n in adopt if (path / n).exists())}
+                marker = {
+                    "format": FORMAT,
+                    "kind": kind,
+                    "run_id": secrets.token_hex(8),
+                    "files": sorted(n for n in adopt if (path / n).exists()),
+                }
             elif marker.get("kind") != kind:
-                raise FolderError(f"{what} {path} is a {marker.get('kind')} folder, not a {kind} one: choose another {what}")
+                raise FolderError(
+                    f"{what} {path} is a {marker.get('kind')} folder, not a {kind} one: choose another {what}"
+                )
             folder = cls(path, marker, locked)
             if overwrite:
                 folder.remove_listed()
@@ -127,8 +137,10 @@ class RunFolder:
         names = foreign_files(path, adopt)
         if names:
             shown = ", ".join(names[:5]) + (f" and {len(names) - 5} more" if len(names) > 5 else "")
-            raise FolderError(f"{what} {path} holds files semuav-jax did not write ({shown}) and no {MARKER} marker: "
-                              f"refusing to write there; choose another {what} (an empty or new folder)")
+            raise FolderError(
+                f"{what} {path} holds files semuav-jax did not write ({shown}) and no {MARKER} marker: "
+                f"refusing to write there; choose another {what} (an empty or new folder)"
+            )
 
     def _save_marker(self) -> None:
         if self.readonly:
@@ -207,8 +219,10 @@ def _lock(path: Path) -> bool:
             if host == me["host"] and not _alive(pid):
                 lock.unlink(missing_ok=True)  # stale: its process is gone
                 continue
-            raise FolderError(f"{path} is in use by another run (pid {pid} on {host} since {holder.get('since')}; "
-                              f"remove {lock} if that process is gone)") from None
+            raise FolderError(
+                f"{path} is in use by another run (pid {pid} on {host} since {holder.get('since')}; "
+                f"remove {lock} if that process is gone)"
+            ) from None
         with os.fdopen(fd, "w") as f:
             json.dump(me, f)
         _HELD.add(lock.resolve())

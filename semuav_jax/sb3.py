@@ -48,8 +48,11 @@ class SemUAVVecEnv(VecEnv):
         infos = [{"TimeLimit.truncated": False} for _ in range(self.num_envs)]
         for source, rows in ((info, np.flatnonzero(~term)), (info.get("final_info", {}), np.flatnonzero(term))):
             # one .tolist() per key, not one .item() per sub-env and key: the loop below is all Python
-            cols = {k: (v.tolist(), source[f"_{k}"]) for k, v in source.items()
-                    if not k.startswith("_") and k not in ("final_obs", "final_info")}
+            cols = {
+                k: (v.tolist(), source[f"_{k}"])
+                for k, v in source.items()
+                if not k.startswith("_") and k not in ("final_obs", "final_info")
+            }
             for i in rows.tolist():
                 infos[i] |= {k: v[i] for k, (v, mask) in cols.items() if mask[i]}
         for i in np.flatnonzero(term):

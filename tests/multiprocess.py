@@ -20,8 +20,12 @@ def free_port() -> int:
 
 
 def environment(devices: int = 1) -> dict:
-    return {**os.environ, "JAX_PLATFORMS": "cpu", "PYTHONPATH": str(ROOT),
-            "XLA_FLAGS": f"--xla_force_host_platform_device_count={devices}"}
+    return {
+        **os.environ,
+        "JAX_PLATFORMS": "cpu",
+        "PYTHONPATH": str(ROOT),
+        "XLA_FLAGS": f"--xla_force_host_platform_device_count={devices}",
+    }
 
 
 def start(args: list[str], processes: int, timeout_s: float = 20, devices: int = 1, logs: Path | None = None):
@@ -30,12 +34,30 @@ def start(args: list[str], processes: int, timeout_s: float = 20, devices: int =
     port = free_port()
     procs = []
     for i in range(processes):
-        with (open(logs / f"p{i}.out" if logs else os.devnull, "wb") as out,
-              open(logs / f"p{i}.err" if logs else os.devnull, "wb") as err):  # the child keeps its own copies
-            procs.append(subprocess.Popen(
-                [sys.executable, *args, "--coordinator", f"127.0.0.1:{port}", "--num-processes", str(processes),
-                 "--process-id", str(i), "--dist-timeout", str(timeout_s)],
-                cwd=ROOT, env=environment(devices), stdout=out, stderr=err))
+        with (
+            open(logs / f"p{i}.out" if logs else os.devnull, "wb") as out,
+            open(logs / f"p{i}.err" if logs else os.devnull, "wb") as err,
+        ):  # the child keeps its own copies
+            procs.append(
+                subprocess.Popen(
+                    [
+                        sys.executable,
+                        *args,
+                        "--coordinator",
+                        f"127.0.0.1:{port}",
+                        "--num-processes",
+                        str(processes),
+                        "--process-id",
+                        str(i),
+                        "--dist-timeout",
+                        str(timeout_s),
+                    ],
+                    cwd=ROOT,
+                    env=environment(devices),
+                    stdout=out,
+                    stderr=err,
+                )
+            )
     return procs
 
 
@@ -68,12 +90,21 @@ def run(args: list[str], processes: int, limit_s: float = 300, **kw):
     with tempfile.TemporaryDirectory() as d:
         logs = Path(d)
         codes = wait_all(start(args, processes, logs=logs, **kw), limit_s)
-        texts = [((logs / f"p{i}.out").read_text(errors="replace"), (logs / f"p{i}.err").read_text(errors="replace"))
-                 for i in range(processes)]
+        texts = [
+            ((logs / f"p{i}.out").read_text(errors="replace"), (logs / f"p{i}.err").read_text(errors="replace"))
+            for i in range(processes)
+        ]
     return codes, texts
 
 
 def single(args: list[str], devices: int = 1, limit_s: float = 300) -> subprocess.CompletedProcess:
     """``python ARGS`` in one process with ``devices`` host devices."""
-    return subprocess.run([sys.executable, *args], cwd=ROOT, env=environment(devices), capture_output=True, text=True,
-                          timeout=limit_s, check=False)
+    return subprocess.run(
+        [sys.executable, *args],
+        cwd=ROOT,
+        env=environment(devices),
+        capture_output=True,
+        text=True,
+        timeout=limit_s,
+        check=False,
+    )

@@ -13,8 +13,20 @@ from semuav_jax.env import reset_state
 @pytest.fixture
 def state(params):
     s = reset_state(jax.random.key(0), params)
-    pos = jnp.array([[100.0, 300.0], [130.0, 340.0], [50.0, 300.0], [400.0, 100.0], [900.0, 500.0],
-                     [60.0, 310.0], [700.0, 300.0], [20.0, 250.0], [500.0, 550.0], [300.0, 300.0]])
+    pos = jnp.array(
+        [
+            [100.0, 300.0],
+            [130.0, 340.0],
+            [50.0, 300.0],
+            [400.0, 100.0],
+            [900.0, 500.0],
+            [60.0, 310.0],
+            [700.0, 300.0],
+            [20.0, 250.0],
+            [500.0, 550.0],
+            [300.0, 300.0],
+        ]
+    )
     m = jnp.zeros(10).at[2].set(params.M).at[5].set(10.0)  # device 2 finished, device 5 partly received
     return s.replace(dev_pos=pos, m=m, q=jnp.array([40.0, 300.0]), v=jnp.array([4.0, 0.0]))
 

@@ -52,8 +52,9 @@ def test_animate_writes_one_frame_per_stride_and_holds_the_end(fixed, tmp_path):
     assert (frames[0] != frames[3]).any()  # the UAVs move
 
 
-@pytest.mark.parametrize("scenario, traces, msg", [("random", {"a": None}, "layout must be 'fixed'"),
-                                                    ("fixed", {}, "at least one trace")])
+@pytest.mark.parametrize(
+    "scenario, traces, msg", [("random", {"a": None}, "layout must be 'fixed'"), ("fixed", {}, "at least one trace")]
+)
 def test_animate_bad_input(curves, tmp_path, scenario, traces, msg):
     with pytest.raises(ValueError, match=msg):
         animate(traces, scenario_params(scenario, curves, K=K), tmp_path / "a.gif")

@@ -3,6 +3,7 @@
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from test_control import time_home_by_hand
 
 from baselines.evaluate import resolve, tsp_ranks
 from baselines.policies import MARGIN_S, feasible, greedy, init_state, straight, tsp
@@ -10,7 +11,6 @@ from baselines.tsp import solve_order
 from semuav_jax.control import home_command, speed_command
 from semuav_jax.env import initial_state
 from semuav_jax.params import make_params
-from test_control import time_home_by_hand
 
 V_B = 8.9
 

@@ -52,10 +52,12 @@ def flights(params):
     hand = jnp.asarray(_hand_layouts(), jnp.float32)
     s_hand = jax.vmap(lambda p: initial_state(p, jnp.zeros(10, jnp.int32), params))(hand)
     s0 = jax.tree.map(lambda a, b: jnp.concatenate([a, b]), s0, s_hand)
-    rank = np.concatenate([
-        tsp_ranks(keys[:1000], params, time_limit_ms=10),
-        np.argsort(solve_orders(_hand_layouts(), params.q0, params.q_fin), axis=1),
-    ])
+    rank = np.concatenate(
+        [
+            tsp_ranks(keys[:1000], params, time_limit_ms=10),
+            np.argsort(solve_orders(_hand_layouts(), params.q0, params.q_fin), axis=1),
+        ]
+    )
     out = {}
     for name, policy in POLICIES.items():
         out[name] = jax.tree.map(np.asarray, _flights(policy, keys, params, s0, jnp.asarray(rank, jnp.int32)))

@@ -17,7 +17,9 @@ def random_layout(rng, n):
 def brute_force(pos):
     """Shortest open path q0 -> all devices -> q_fin by enumerating every permutation."""
     perms = np.array(list(itertools.permutations(range(len(pos)))))
-    pts = np.concatenate([np.broadcast_to(Q0, (len(perms), 1, 2)), pos[perms], np.broadcast_to(Q_FIN, (len(perms), 1, 2))], 1)
+    pts = np.concatenate(
+        [np.broadcast_to(Q0, (len(perms), 1, 2)), pos[perms], np.broadcast_to(Q_FIN, (len(perms), 1, 2))], 1
+    )
     lengths = np.linalg.norm(np.diff(pts, axis=1), axis=-1).sum(1)
     return perms[np.argmin(lengths)], lengths.min()
 

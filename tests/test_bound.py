@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 from baselines.bound import knapsack, peak_rate, psnr_bound, symbol_budget
-from baselines.evaluate import evaluate
-from baselines.evaluate import layouts
+from baselines.evaluate import evaluate, layouts
 from semuav_jax import channel
 from semuav_jax.params import make_params
 
@@ -44,7 +43,9 @@ def test_snr_is_largest_right_below(params):
     r = np.linspace(0.0, np.sqrt(105.0**2 - 100.0**2), 20001)
     s = np.asarray(jax.jit(channel.snr)(jnp.asarray(r * r, jnp.float32), params.H, params.P_n, params))
     assert np.all(np.diff(s) <= 0.0)
-    assert peak_rate(params) == pytest.approx(float(channel.rate(0.0, params.H, params.P_n, params.B, params)), rel=1e-5)
+    assert peak_rate(params) == pytest.approx(
+        float(channel.rate(0.0, params.H, params.P_n, params.B, params)), rel=1e-5
+    )
 
 
 def _brute(c, budget):

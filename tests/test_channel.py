@@ -4,10 +4,11 @@ import math
 
 import jax.numpy as jnp
 import numpy as np
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from reference_numpy import a2g_path_loss_db, a2g_rate, params_dict
 
 from semuav_jax import channel
-from reference_numpy import a2g_path_loss_db, a2g_rate, params_dict
 
 
 def test_device_right_below_uav(params):

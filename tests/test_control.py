@@ -31,17 +31,25 @@ def test_speed_command_by_hand(params):
     # from rest towards +x: (8.9 - 0) / 0.5 = 17.8 -> clipped to a_max = 5
     np.testing.assert_allclose(speed_command(q, jnp.zeros(2), jnp.array([100.0, 0.0]), V_B, params), [5.0, 0.0])
     # cruising at v_b towards the target: no command
-    np.testing.assert_allclose(speed_command(q, jnp.array([V_B, 0.0]), jnp.array([100.0, 0.0]), V_B, params), [0.0, 0.0])
+    np.testing.assert_allclose(
+        speed_command(q, jnp.array([V_B, 0.0]), jnp.array([100.0, 0.0]), V_B, params), [0.0, 0.0]
+    )
     # 0.5 m/s short: (8.9 - 8.4) / 0.5 = 1.0
-    np.testing.assert_allclose(speed_command(q, jnp.array([8.4, 0.0]), jnp.array([100.0, 0.0]), V_B, params), [1.0, 0.0], rtol=1e-5)
+    np.testing.assert_allclose(
+        speed_command(q, jnp.array([8.4, 0.0]), jnp.array([100.0, 0.0]), V_B, params), [1.0, 0.0], rtol=1e-5
+    )
     # a right-angle turn: (-17.8, 17.8) -> (-5, 5)
-    np.testing.assert_allclose(speed_command(q, jnp.array([V_B, 0.0]), jnp.array([0.0, 100.0]), V_B, params), [-5.0, 5.0])
+    np.testing.assert_allclose(
+        speed_command(q, jnp.array([V_B, 0.0]), jnp.array([0.0, 100.0]), V_B, params), [-5.0, 5.0]
+    )
     # at the target itself: brake, no NaN
     np.testing.assert_allclose(speed_command(q, jnp.array([1.0, -2.0]), q, V_B, params), [-2.0, 4.0])
 
 
 @settings(max_examples=200, deadline=None)
-@given(st.lists(st.floats(-2000, 2000), min_size=6, max_size=6), st.floats(0.1, 40.0), st.sampled_from([None, 0.0, 30.0]))
+@given(
+    st.lists(st.floats(-2000, 2000), min_size=6, max_size=6), st.floats(0.1, 40.0), st.sampled_from([None, 0.0, 30.0])
+)
 def test_speed_command_never_exceeds_a_max(params, xs, v_b, margin):
     p = params if margin is None else params.replace(airspace_margin=margin)
     a = speed_command(jnp.array(xs[:2]), jnp.array(xs[2:4]) / 50.0, jnp.array(xs[4:]), v_b, p)
@@ -73,7 +81,8 @@ def test_approach_speed_by_hand(params):
 def test_time_to_pass_by_hand(params):
     # from rest at q0 through (500, 300) at 8.9 m/s: turn 8.9 / 5 = 1.78 s, then 500 / 8.9 = 56.18 s
     assert float(time_to_pass(params.q0, jnp.zeros(2), jnp.array([500.0, 300.0]), V_B, params)) == pytest.approx(
-        1.78 + 500 / 8.9, rel=1e-6)
+        1.78 + 500 / 8.9, rel=1e-6
+    )
     # flying +y at 10 m/s towards a point 300 m along +x: turn max(8.9, 10) / 5 = 2 s, drift 100 / 10 = 10 m
     t = time_to_pass(jnp.array([0.0, 0.0]), jnp.array([0.0, 10.0]), jnp.array([300.0, 0.0]), V_B, params)
     assert float(t) == pytest.approx(2.0 + 310.0 / 8.9, rel=1e-6)
@@ -84,11 +93,17 @@ def test_time_home_by_hand(params):
     # at 8.9 m/s from (500, 300) along +x: no turn; cruise (500 - 31.684) / 8.9 = 52.620 s; brake
     # 2 (sqrt(31.684) - sqrt(15)) / sqrt(2.5) = 2.221 s (d0 = 8.9^2 / 2.5 = 31.684 m)
     assert th([500.0, 300.0], [8.9, 0.0], 8.9) == pytest.approx(52.620 + 2.221, abs=1e-3)
-    for q, v, s in (([120.0, 40.0], [-20.0, 7.0], 12.0), ([980.0, 330.0], [15.0, 20.0], 25.0),
-                    ([700.0, 590.0], [3.0, 1.0], 8.9), ([950.0, 300.0], [25.0, 0.0], 20.0)):
+    for q, v, s in (
+        ([120.0, 40.0], [-20.0, 7.0], 12.0),
+        ([980.0, 330.0], [15.0, 20.0], 25.0),
+        ([700.0, 590.0], [3.0, 1.0], 8.9),
+        ([950.0, 300.0], [25.0, 0.0], 20.0),
+    ):
         assert th(q, v, s) == pytest.approx(time_home_by_hand(q, v, s, s), rel=1e-5)
 
 
 def test_home_command_brakes_into_the_disk(params):
     # 10 m before q_fin at 20 m/s: approach speed sqrt(2.5 * 10) = 5 m/s, so brake with a_max in x
-    np.testing.assert_allclose(home_command(jnp.array([990.0, 300.0]), jnp.array([20.0, 0.0]), 25.0, params), [-5.0, 0.0])
+    np.testing.assert_allclose(
+        home_command(jnp.array([990.0, 300.0]), jnp.array([20.0, 0.0]), 25.0, params), [-5.0, 0.0]
+    )

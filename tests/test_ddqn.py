@@ -36,7 +36,9 @@ def test_double_q_target_by_hand():
 
 def _batch(start, n, obs_dim=3):
     v = jnp.arange(start, start + n, dtype=jnp.float32)
-    return Transition(jnp.repeat(v[:, None], obs_dim, 1), v.astype(jnp.int32), v, v[:, None] + jnp.zeros(obs_dim), v * 0, v * 0 + 0.9)
+    return Transition(
+        jnp.repeat(v[:, None], obs_dim, 1), v.astype(jnp.int32), v, v[:, None] + jnp.zeros(obs_dim), v * 0, v * 0 + 0.9
+    )
 
 
 def test_replay_wraps_around():
@@ -117,8 +119,16 @@ def test_config_validation():
 def test_short_training_improves_return(curves):
     """Fixed layout, paper reward: ~100 k env steps lift the greedy return far above the untrained net's."""
     params = scenario_params("fixed", curves, reward_mode="paper")
-    cfg = DDQNConfig(num_envs=32, steps_per_chunk=50, total_steps=96_000, learning_starts=4096, lr=1e-3,
-                     eps_decay_frac=0.6, target_period=2, gamma=0.98)
+    cfg = DDQNConfig(
+        num_envs=32,
+        steps_per_chunk=50,
+        total_steps=96_000,
+        learning_starts=4096,
+        lr=1e-3,
+        eps_decay_frac=0.6,
+        target_period=2,
+        gamma=0.98,
+    )
     tr = make_train(cfg, params)
     state, _ = jax.jit(tr.train)(jax.random.PRNGKey(0))
     untrained = jax.jit(tr.init)(jax.random.PRNGKey(0)).params
@@ -142,8 +152,13 @@ def test_agent_inputs_ignore_device_order(curves):
     params = scenario_params("random", curves)
     s = reset_state(jax.random.PRNGKey(3), params)
     m = jnp.array([0.0, 40.0, params.M, 0.0, 3.0, 0.0, params.M, 0.0, 0.0, 100.0])
-    s = s.replace(m=m, phi=params.C[s.dev_img, jnp.floor(m).astype(jnp.int32)], q=jnp.array([420.0, 310.0]),
-                  v=jnp.array([6.0, -3.0]), t=jnp.int32(80))
+    s = s.replace(
+        m=m,
+        phi=params.C[s.dev_img, jnp.floor(m).astype(jnp.int32)],
+        q=jnp.array([420.0, 310.0]),
+        v=jnp.array([6.0, -3.0]),
+        t=jnp.int32(80),
+    )
     for actions, size in (("table", 9 + 2 + 10 * 7), ("waypoint", 14 + 10 * 9)):
         cfg = DDQNConfig(**SMALL, actions=actions)
         f1, f2 = agent_input(s, params, cfg), agent_input(_permuted(s), params, cfg)
@@ -155,13 +170,18 @@ def test_n_step_transition_by_hand():
     """Window of 3 steps for two envs; env 1 ends its episode at the second step."""
     g = 0.9
     obs = jnp.arange(3 * 2, dtype=jnp.float32).reshape(3, 2, 1)
-    w = Transition(obs=obs, action=jnp.array([[1, 2], [3, 4], [5, 6]]),
-                   reward=jnp.array([[1.0, 10.0], [2.0, 20.0], [4.0, 40.0]]), next_obs=obs + 100.0,
-                   done=jnp.array([[0.0, 0.0], [0.0, 1.0], [0.0, 0.0]]), discount=jnp.full((3, 2), g))
+    w = Transition(
+        obs=obs,
+        action=jnp.array([[1, 2], [3, 4], [5, 6]]),
+        reward=jnp.array([[1.0, 10.0], [2.0, 20.0], [4.0, 40.0]]),
+        next_obs=obs + 100.0,
+        done=jnp.array([[0.0, 0.0], [0.0, 1.0], [0.0, 0.0]]),
+        discount=jnp.full((3, 2), g),
+    )
     t = n_step_transition(w, g)
     # env 0: 1 + 0.9 * 2 + 0.81 * 4, bootstrap from the third next_obs with 0.9^3
     np.testing.assert_allclose(t.reward, [1 + g * 2 + g * g * 4, 10 + g * 20], rtol=1e-6)
-    np.testing.assert_allclose(t.discount, [g ** 3, g ** 2], rtol=1e-6)
+    np.testing.assert_allclose(t.discount, [g**3, g**2], rtol=1e-6)
     np.testing.assert_array_equal(t.done, [0.0, 1.0])
     np.testing.assert_array_equal(t.next_obs[:, 0], [104.0, 103.0])  # env 1 stops at its terminal step
     np.testing.assert_array_equal(t.action, [1, 2])
@@ -176,7 +196,9 @@ def test_agent_env_observes_agent_input_and_reports_final_metrics(curves):
     params = scenario_params("random", curves, K=6)
     cfg = DDQNConfig(**SMALL)
     env = AgentEnv(params, cfg)
-    assert env.observation_space(params).shape == (int(agent_input(env.reset(jax.random.key(0), params)[1], params, cfg).shape[0]),)
+    assert env.observation_space(params).shape == (
+        int(agent_input(env.reset(jax.random.key(0), params)[1], params, cfg).shape[0]),
+    )
     step_env = jax.jit(env.step_env)
     obs, s = env.reset(jax.random.key(0), params)
     for t in range(6):

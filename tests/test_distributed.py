@@ -58,14 +58,17 @@ def _options(argv):
     return p.parse_args(argv)
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["--num-processes", "2"], "need --coordinator"),
-    (["--coordinator", "127.0.0.1"], "HOST:PORT"),
-    (["--coordinator", "127.0.0.1:99999", "--num-processes", "2", "--process-id", "0"], "HOST:PORT"),
-    (["--coordinator", "127.0.0.1:1234", "--num-processes", "2"], "needs --num-processes and --process-id"),
-    (["--coordinator", "127.0.0.1:1234", "--num-processes", "2", "--process-id", "2"], "0 .. 1"),
-    (["--dist-timeout", "0.5"], ">= 2 s"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--num-processes", "2"], "need --coordinator"),
+        (["--coordinator", "127.0.0.1"], "HOST:PORT"),
+        (["--coordinator", "127.0.0.1:99999", "--num-processes", "2", "--process-id", "0"], "HOST:PORT"),
+        (["--coordinator", "127.0.0.1:1234", "--num-processes", "2"], "needs --num-processes and --process-id"),
+        (["--coordinator", "127.0.0.1:1234", "--num-processes", "2", "--process-id", "2"], "0 .. 1"),
+        (["--dist-timeout", "0.5"], ">= 2 s"),
+    ],
+)
 def test_bad_distributed_options_are_one_line_errors(argv, message):
     with pytest.raises(distributed.DistributedError, match=message):
         distributed.check_options(_options(argv))
@@ -84,15 +87,39 @@ def test_a_peer_that_never_starts_ends_the_run_within_the_timeout():
         distributed.initialize(args)
         print("started")
     """)
-    p = subprocess.run([sys.executable, "-c", script, "--coordinator", f"127.0.0.1:{free_port()}", "--num-processes",
-                        "2", "--process-id", "0", "--dist-timeout", "5"],
-                       cwd=ROOT, env=environment(), capture_output=True, text=True, timeout=120, check=False)
+    p = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            script,
+            "--coordinator",
+            f"127.0.0.1:{free_port()}",
+            "--num-processes",
+            "2",
+            "--process-id",
+            "0",
+            "--dist-timeout",
+            "5",
+        ],
+        cwd=ROOT,
+        env=environment(),
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
     waited = time.time() - float(p.stdout.split()[0])
     assert p.returncode == 1, p.stderr[-2000:]
     assert "started" not in p.stdout
-    assert p.stderr.strip().splitlines()[-1].endswith(
-        "error: could not start the distributed run at 127.0.0.1:" + p.args[4].split(":")[1]
-        + ": not every process joined within 5 s")
+    assert (
+        p.stderr.strip()
+        .splitlines()[-1]
+        .endswith(
+            "error: could not start the distributed run at 127.0.0.1:"
+            + p.args[4].split(":")[1]
+            + ": not every process joined within 5 s"
+        )
+    )
     assert 5 <= waited < 5 + 5  # the timeout, plus the interpreter's exit
 
 
@@ -101,7 +128,8 @@ GRID = {"episodes": 6, "seeds": [0, 1], "policies": ["greedy", "tsp@15"], "param
 
 def _sweep_files(out):
     return {p.name: p.read_bytes() for p in sorted((out / "items").glob("*.json"))} | {
-        "sweep.csv": (out / "sweep.csv").read_bytes()}
+        "sweep.csv": (out / "sweep.csv").read_bytes()
+    }
 
 
 @pytest.mark.slow
@@ -140,8 +168,9 @@ def test_a_peer_lost_mid_run_ends_the_other_within_the_timeout(tmp_path, fault):
     grid = tmp_path / "grid.json"
     grid.write_text(json.dumps({**GRID, "seeds": list(range(20))}))
     timeout_s = 20
-    procs = start(["-m", "semuav_jax.cli.sweep", str(grid), "--out", str(tmp_path / "out")], 2, timeout_s=timeout_s,
-                  logs=tmp_path)
+    procs = start(
+        ["-m", "semuav_jax.cli.sweep", str(grid), "--out", str(tmp_path / "out")], 2, timeout_s=timeout_s, logs=tmp_path
+    )
     try:
         assert _wait_for(tmp_path / "out" / "items", 240), (tmp_path / "p0.err").read_text()[-2000:]
         os.kill(procs[1].pid, signal.SIGKILL if fault == "kill" else signal.SIGSTOP)
@@ -189,8 +218,21 @@ def _fig2(out):
 @pytest.mark.xfail(reason="time-limited OR-Tools tours and per-shape float reductions (docs/scaling.md)", strict=False)
 def test_eval_quick_is_the_same_on_2_processes(tmp_path):
     """eval.py --quick on a reduced grid: the same fig2.json, fig2.md and saved steps as one process."""
-    cmd = [str(ROOT / "eval.py"), "--quick", "--layouts", "6", "--validation-layouts", "4", "--bandwidths", "25000",
-           "--velocities", "8.9", "--workers", "1", "--out"]
+    cmd = [
+        str(ROOT / "eval.py"),
+        "--quick",
+        "--layouts",
+        "6",
+        "--validation-layouts",
+        "4",
+        "--bandwidths",
+        "25000",
+        "--velocities",
+        "8.9",
+        "--workers",
+        "1",
+        "--out",
+    ]
     one = single([*cmd, str(tmp_path / "one")], limit_s=1200)
     assert one.returncode == 0, one.stderr[-2000:]
     codes, texts = run([*cmd, str(tmp_path / "two")], 2, limit_s=1200)
@@ -209,9 +251,28 @@ def test_train_on_2_processes_writes_the_weights_of_1(tmp_path, curves):
     from semuav_jax.curves import save_curves
 
     c = str(save_curves(tmp_path / "curves.npz", curves, {"source": "synthetic"}))
-    cmd = [str(ROOT / "train.py"), "--curves", c, "--seeds", "3", "--num-envs", "4", "--steps-per-chunk", "5",
-           "--total-steps", "80", "--learning-starts", "32", "--batch-size", "8", "--segments", "2",
-           "--eval-episodes", "0", "--out"]
+    cmd = [
+        str(ROOT / "train.py"),
+        "--curves",
+        c,
+        "--seeds",
+        "3",
+        "--num-envs",
+        "4",
+        "--steps-per-chunk",
+        "5",
+        "--total-steps",
+        "80",
+        "--learning-starts",
+        "32",
+        "--batch-size",
+        "8",
+        "--segments",
+        "2",
+        "--eval-episodes",
+        "0",
+        "--out",
+    ]
     one = single([*cmd, str(tmp_path / "one")])
     assert one.returncode == 0, one.stderr[-2000:]
     codes, texts = run([*cmd, str(tmp_path / "two")], 2, limit_s=600)

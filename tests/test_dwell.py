@@ -5,7 +5,15 @@ import jax
 import numpy as np
 import pytest
 
-from baselines.dwell import DWELL_POLICIES, candidates, check_knobs, dwell_metrics, dwell_sweep, greedy_dwell, init_dwell
+from baselines.dwell import (
+    DWELL_POLICIES,
+    candidates,
+    check_knobs,
+    dwell_metrics,
+    dwell_sweep,
+    greedy_dwell,
+    init_dwell,
+)
 from baselines.evaluate import tsp_ranks
 from semuav_jax.env import initial_state
 from semuav_jax.params import make_params
@@ -74,11 +82,18 @@ def test_sweep_equals_a_plain_loop(params):
         assert m["arrived"].all()
 
 
-@pytest.mark.parametrize("v_c,k,margin,match", [
-    (0.0, 32, 0, "v_c must be finite and > 0"), (float("nan"), 32, 0, "v_c"), (25, 0, 0, "k_star must be in"),
-    (25, 257, 0, r"k_star must be in \(0, M = 256\], got 257"), (25, -4, 0, "got -4"),
-    (25, 32, float("inf"), "margin must be finite"), (25, [[1, 2]], 0, "1-D list"),
-])
+@pytest.mark.parametrize(
+    "v_c,k,margin,match",
+    [
+        (0.0, 32, 0, "v_c must be finite and > 0"),
+        (float("nan"), 32, 0, "v_c"),
+        (25, 0, 0, "k_star must be in"),
+        (25, 257, 0, r"k_star must be in \(0, M = 256\], got 257"),
+        (25, -4, 0, "got -4"),
+        (25, 32, float("inf"), "margin must be finite"),
+        (25, [[1, 2]], 0, "1-D list"),
+    ],
+)
 def test_bad_knobs_are_one_line_errors(params, v_c, k, margin, match):
     with pytest.raises(ValueError, match=match):
         check_knobs(v_c, k, margin, params)

@@ -6,14 +6,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from reference_numpy import NumpyEnv, a2g_rate, params_dict, speed_cap
 
 from semuav_jax import channel, env
 from semuav_jax.actions import action_table
 from semuav_jax.env import SemUAVEnv, bandwidth_shares, initial_state, transition, transition_u
 from semuav_jax.observation import obs_size, observation
 from semuav_jax.params import make_params
-from reference_numpy import NumpyEnv, a2g_rate, params_dict, speed_cap
 
 step_u = jax.jit(transition_u)
 
@@ -139,8 +140,7 @@ def test_no_wall_the_uav_flies_on_beyond_the_area(curves):
 
 def test_leaving_the_airspace_ends_the_episode_as_a_miss(curves):
     # airspace_margin = 12 m: x = 1005 is inside the bound, x = 1015 (> 1012) ends the episode
-    p = make_params(curves, proc_max=0.0, q_fin=[0.0, 0.0], K=10, airspace_margin=12.0, reward_mode="gain",
-                    kappa_d=0.0)
+    p = make_params(curves, proc_max=0.0, q_fin=[0.0, 0.0], K=10, airspace_margin=12.0, reward_mode="gain", kappa_d=0.0)
     s = env.reset_state(jax.random.key(0), p).replace(q=jnp.array([995.0, 300.0]), v=jnp.array([20.0, 0.0]))
     s, r = step_u(0.0, s, jnp.zeros(2), p)
     assert not bool(s.done) and float(r) == 0.0

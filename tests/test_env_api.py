@@ -178,4 +178,6 @@ def test_waypoint_action_mode(curves):
     # a waypoint command differs from table action 0 (full braking on both axes)
     table, _ = semuav_jax.make("SemUAV-v0", curves=curves, K=K)
     s_table = table.step_env(jax.random.key(0), s, 0, p)[1]
-    assert not np.array_equal(np.asarray(s_table.a_prev), np.asarray(env.step_env(jax.random.key(0), s, 0, p)[1].a_prev))
+    assert not np.array_equal(
+        np.asarray(s_table.a_prev), np.asarray(env.step_env(jax.random.key(0), s, 0, p)[1].a_prev)
+    )

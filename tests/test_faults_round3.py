@@ -52,18 +52,21 @@ def test_step_refuses_a_state_of_another_n(table_env, curves):
         env.step(jax.random.key(1), s, 3, p5)
 
 
-@pytest.mark.parametrize("kw, msg", [
-    ({"B": [1e3, 2e3]}, "B must be a scalar"),
-    ({"a_max": 1e30}, "a_max must be below"),
-    ({"v_max": 1e20}, "v_max must be below"),
-    ({"Lx": 1e20}, "Lx must be below"),
-    ({"los_a": -1.0}, "los_a must be > 0"),
-    ({"los_b": 0.0}, "los_b must be > 0"),
-    ({"eta_los": -1.0}, "eta_los must be >= 0"),
-    ({"eta_nlos": -3.0}, "eta_nlos must be >= 0"),
-    ({"N": 5, "device_pos": np.full((10, 2), 100.0)}, "N = 5 disagrees with device_pos"),
-    ({"device_pos": np.array([1.0, 2.0])}, r"device_pos must have shape \(N, 2\)"),
-])
+@pytest.mark.parametrize(
+    "kw, msg",
+    [
+        ({"B": [1e3, 2e3]}, "B must be a scalar"),
+        ({"a_max": 1e30}, "a_max must be below"),
+        ({"v_max": 1e20}, "v_max must be below"),
+        ({"Lx": 1e20}, "Lx must be below"),
+        ({"los_a": -1.0}, "los_a must be > 0"),
+        ({"los_b": 0.0}, "los_b must be > 0"),
+        ({"eta_los": -1.0}, "eta_los must be >= 0"),
+        ({"eta_nlos": -3.0}, "eta_nlos must be >= 0"),
+        ({"N": 5, "device_pos": np.full((10, 2), 100.0)}, "N = 5 disagrees with device_pos"),
+        ({"device_pos": np.array([1.0, 2.0])}, r"device_pos must have shape \(N, 2\)"),
+    ],
+)
 def test_make_params_refuses(curves, kw, msg):
     with pytest.raises(ValueError, match=msg):
         make_params(curves, **kw)
@@ -108,8 +111,11 @@ def agent():
 
 
 def _edited(tmp_path, agent, run=None, weights=None):
-    blob = {"format": "semuav-jax agent 1", "run": json.dumps(agent.run if run is None else run),
-            "weights": jax.tree.map(np.asarray, agent.weights) if weights is None else weights}
+    blob = {
+        "format": "semuav-jax agent 1",
+        "run": json.dumps(agent.run if run is None else run),
+        "weights": jax.tree.map(np.asarray, agent.weights) if weights is None else weights,
+    }
     if weights == "missing":
         del blob["weights"]
     path = tmp_path / "a.agent"
@@ -124,12 +130,14 @@ def test_agent_load_checks_weights_against_the_config(tmp_path, agent):
     unknown["ddqn"]["foo"] = 1
     w = jax.tree.map(np.asarray, agent.weights)
     w["params"]["Dense_0"]["kernel"] = w["params"]["Dense_0"]["kernel"][:, :5]
-    cases = [({"run": hidden}, "do not match its config .*Dense_0/kernel"),
-             ({"weights": w}, r"Dense_0/kernel \(104, 5\) \(expected \(104, 128\)\)"),
-             ({"run": unknown}, "unknown key in its 'ddqn' block: foo"),
-             ({"run": [1]}, "not a semuav-jax agent file"),
-             ({"weights": "missing"}, "not a semuav-jax agent file"),
-             ({"weights": "a string"}, "do not match its config")]
+    cases = [
+        ({"run": hidden}, "do not match its config .*Dense_0/kernel"),
+        ({"weights": w}, r"Dense_0/kernel \(104, 5\) \(expected \(104, 128\)\)"),
+        ({"run": unknown}, "unknown key in its 'ddqn' block: foo"),
+        ({"run": [1]}, "not a semuav-jax agent file"),
+        ({"weights": "missing"}, "not a semuav-jax agent file"),
+        ({"weights": "a string"}, "do not match its config"),
+    ]
     for kw, msg in cases:
         with pytest.raises(ValueError, match=msg) as e:
             Agent.load(_edited(tmp_path, agent, **kw))
@@ -207,12 +215,15 @@ def _err(capsys, main, argv):
     return code, err
 
 
-@pytest.mark.parametrize("argv, msg", [
-    (["--layouts", "0"], "--layouts must be >= 2"),
-    (["--validation-layouts", "0"], "--validation-layouts and --workers >= 1"),
-    (["--quick", "--bandwidths", "1e-50"], "bandwidth 1e-50 Hz is too small for any image to arrive"),
-    (["--quick", "--curves", "nowhere.npz"], "not found"),
-])
+@pytest.mark.parametrize(
+    "argv, msg",
+    [
+        (["--layouts", "0"], "--layouts must be >= 2"),
+        (["--validation-layouts", "0"], "--validation-layouts and --workers >= 1"),
+        (["--quick", "--bandwidths", "1e-50"], "bandwidth 1e-50 Hz is too small for any image to arrive"),
+        (["--quick", "--curves", "nowhere.npz"], "not found"),
+    ],
+)
 def test_eval_options_refused_before_any_computation(tmp_path, capsys, argv, msg):
     from semuav_jax.cli.eval import main
 
@@ -221,11 +232,14 @@ def test_eval_options_refused_before_any_computation(tmp_path, capsys, argv, msg
     assert not (tmp_path / "o" / "stages").exists()
 
 
-@pytest.mark.parametrize("argv, msg", [
-    (["--bandwidth-range", "none", "5000"], "give either none or numbers"),
-    (["--seed", str(2**40)], "seed must be an integer in [0, 2**32)"),
-    (["--eval-episodes", "1"], "--eval-episodes must be 0"),
-])
+@pytest.mark.parametrize(
+    "argv, msg",
+    [
+        (["--bandwidth-range", "none", "5000"], "give either none or numbers"),
+        (["--seed", str(2**40)], "seed must be an integer in [0, 2**32)"),
+        (["--eval-episodes", "1"], "--eval-episodes must be 0"),
+    ],
+)
 def test_train_options_refused_before_anything_is_written(tmp_path, capsys, argv, msg):
     from semuav_jax.cli.train import main
 
@@ -244,12 +258,15 @@ def _stopped_run(tmp_path):
     return out
 
 
-@pytest.mark.parametrize("edit, msg", [
-    (lambda c: c.update(seeds="1"), "seeds must be an integer >= 1"),
-    (lambda c: c.update(seeds=-1), "seeds must be an integer >= 1"),
-    (lambda c: c.update(segments=0), "segments must be an integer >= 1"),
-    (lambda c: c["ddqn"].update(total_steps=80000), "was edited after the run wrote it"),
-])
+@pytest.mark.parametrize(
+    "edit, msg",
+    [
+        (lambda c: c.update(seeds="1"), "seeds must be an integer >= 1"),
+        (lambda c: c.update(seeds=-1), "seeds must be an integer >= 1"),
+        (lambda c: c.update(segments=0), "segments must be an integer >= 1"),
+        (lambda c: c["ddqn"].update(total_steps=80000), "was edited after the run wrote it"),
+    ],
+)
 def test_resume_revalidates_config_json(tmp_path, capsys, edit, msg):
     from semuav_jax.cli.train import main
 
@@ -309,8 +326,20 @@ def test_jscc_curves_write_only_the_paths_named(tmp_path, capsys):
     assert sorted(p.name for p in (tmp_path / "d").iterdir()) == ["c.npz", "deepjscc.msgpack"]
     assert (tmp_path / "d" / "deepjscc.msgpack").read_text() == "the user's model"
     assert load_curves(tmp_path / "d" / "c.npz").meta["model_file"] is None
-    assert main(["curves", "--ckpt", str(tmp_path / "ckpt"), "--out", str(tmp_path / "d" / "c.npz"),
-                 "--model-out", str(tmp_path / "d" / "m.msgpack")]) == 0
+    assert (
+        main(
+            [
+                "curves",
+                "--ckpt",
+                str(tmp_path / "ckpt"),
+                "--out",
+                str(tmp_path / "d" / "c.npz"),
+                "--model-out",
+                str(tmp_path / "d" / "m.msgpack"),
+            ]
+        )
+        == 0
+    )
     assert sorted(p.name for p in (tmp_path / "d").iterdir()) == ["c.npz", "deepjscc.msgpack", "m.msgpack"]
 
 
@@ -326,25 +355,45 @@ def test_jscc_curves_of_a_non_finite_checkpoint_write_nothing(tmp_path, capsys):
     assert code == 2 and "not finite" in err
     assert [p.name for p in (tmp_path / "d").iterdir()] == ["deepjscc.msgpack"]
     assert (tmp_path / "d" / "deepjscc.msgpack").read_text() == "the user's model"
-    code, err = _err(capsys, main, ["curves", "--ckpt", str(tmp_path / "ckpt"), "--out", str(tmp_path / "d" / "c.npz"),
-                                    "--model-out", str(tmp_path / "d" / "c.npz")])
+    code, err = _err(
+        capsys,
+        main,
+        [
+            "curves",
+            "--ckpt",
+            str(tmp_path / "ckpt"),
+            "--out",
+            str(tmp_path / "d" / "c.npz"),
+            "--model-out",
+            str(tmp_path / "d" / "c.npz"),
+        ],
+    )
     assert code == 2 and "--model-out must be a .msgpack path other than --out" in err
 
 
-@pytest.mark.parametrize("argv, msg", [
-    (["--episodes", "1"], "--episodes must be >= 2"),
-    (["--B", "1e-50"], "bandwidth 1e-50 Hz is too small for any image to arrive"),
-    (["--json", "DIR"], "is a folder, not a file"),
-    (["--json", "FILE/sub.json"], "the folder of --json"),
-    (["--curves", "nowhere.npz"], "not found"),
-])
+@pytest.mark.parametrize(
+    "argv, msg",
+    [
+        (["--episodes", "1"], "--episodes must be >= 2"),
+        (["--B", "1e-50"], "bandwidth 1e-50 Hz is too small for any image to arrive"),
+        (["--json", "DIR"], "is a folder, not a file"),
+        (["--json", "FILE/sub.json"], "the folder of --json"),
+        (["--curves", "nowhere.npz"], "not found"),
+    ],
+)
 def test_baselines_report_checks_options_and_paths_first(tmp_path, argv, msg):
     (tmp_path / "FILE").write_text("x")
     (tmp_path / "DIR").mkdir()
     argv = [str(tmp_path / a) if a.startswith(("DIR", "FILE")) else a for a in argv]
     extra = [] if "--episodes" in argv else ["--episodes", "2"]
-    res = subprocess.run([sys.executable, "-m", "baselines.report", *argv, *extra], capture_output=True, text=True, check=False,
-                         cwd=ROOT, timeout=120)
+    res = subprocess.run(
+        [sys.executable, "-m", "baselines.report", *argv, *extra],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=ROOT,
+        timeout=120,
+    )
     assert res.returncode == 2 and msg in res.stderr and "Traceback" not in res.stderr, res.stderr
 
 
@@ -353,23 +402,68 @@ def test_jscc_train_that_diverges_exits_2_and_saves_nothing(tmp_path, capsys, mo
     from semuav_jax.jscc import data
     from semuav_jax.jscc.__main__ import main
 
-    monkeypatch.setattr(data, "builtin_train_photos", lambda: [np.random.default_rng(0).random((40, 40, 3), dtype=np.float32)])
-    code, err = _err(capsys, main, ["train", "--out", str(tmp_path / "j"), "--steps", "2", "--batch", "2", "--width", "4",
-                                    "--monotone-weight", "0", "--synthetic-fraction", "0", "--snr-db", "-1000"])
+    monkeypatch.setattr(
+        data, "builtin_train_photos", lambda: [np.random.default_rng(0).random((40, 40, 3), dtype=np.float32)]
+    )
+    code, err = _err(
+        capsys,
+        main,
+        [
+            "train",
+            "--out",
+            str(tmp_path / "j"),
+            "--steps",
+            "2",
+            "--batch",
+            "2",
+            "--width",
+            "4",
+            "--monotone-weight",
+            "0",
+            "--synthetic-fraction",
+            "0",
+            "--snr-db",
+            "-1000",
+        ],
+    )
     lines = [ln for ln in err.replace("\r", "\n").splitlines() if "error" in ln]  # beside the progress bar's
     assert code == 2 and len(lines) == 1 and "error: training diverged at step 2" in lines[0], err  # the last step
     assert not (tmp_path / "j" / "checkpoint.msgpack").exists() and not (tmp_path / "j" / ".semuav.lock").exists()
 
 
-TRAIN_TINY = ["--curves", "synthetic", "--num-envs", "4", "--steps-per-chunk", "5", "--total-steps", "80",
-              "--learning-starts", "32", "--batch-size", "8", "--segments", "2", "--eval-episodes", "0", "--workers", "1"]
+TRAIN_TINY = [
+    "--curves",
+    "synthetic",
+    "--num-envs",
+    "4",
+    "--steps-per-chunk",
+    "5",
+    "--total-steps",
+    "80",
+    "--learning-starts",
+    "32",
+    "--batch-size",
+    "8",
+    "--segments",
+    "2",
+    "--eval-episodes",
+    "0",
+    "--workers",
+    "1",
+]
 
 
 @pytest.mark.slow
 def test_train_that_diverges_exits_2_without_a_finished_run(tmp_path):
     out = tmp_path / "r"
-    res = subprocess.run([sys.executable, str(ROOT / "train.py"), *TRAIN_TINY, "--lr", "1e38", "--out", str(out)],
-                         capture_output=True, text=True, cwd=ROOT, timeout=900, check=False)
+    res = subprocess.run(
+        [sys.executable, str(ROOT / "train.py"), *TRAIN_TINY, "--lr", "1e38", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=900,
+        check=False,
+    )
     assert res.returncode == 2 and "training diverged (non-finite loss or weights)" in res.stderr, res.stderr
     assert res.stderr.strip().splitlines()[-1].startswith("train.py: error:")
     assert not (out / "model.msgpack").exists() and not (out / "checkpoint.msgpack").exists()
@@ -383,8 +477,13 @@ def test_ctrl_c_before_the_first_checkpoint_then_resume_finishes(tmp_path):
     import time
 
     out = tmp_path / "r"
-    p = subprocess.Popen([sys.executable, str(ROOT / "train.py"), *TRAIN_TINY, "--out", str(out)],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    p = subprocess.Popen(
+        [sys.executable, str(ROOT / "train.py"), *TRAIN_TINY, "--out", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
     try:
         deadline = time.time() + 600
         while not (out / "config.json").exists() and time.time() < deadline and p.poll() is None:
@@ -397,8 +496,13 @@ def test_ctrl_c_before_the_first_checkpoint_then_resume_finishes(tmp_path):
             p.wait(timeout=60)
     assert p.returncode == 130 and "--resume or the same command starts it again" in err, err
     assert not (out / "checkpoint.msgpack").exists()
-    res = subprocess.run([sys.executable, str(ROOT / "train.py"), "--out", str(out), "--resume", "--eval-episodes", "0"],
-                         capture_output=True,
-                         text=True, cwd=ROOT, timeout=900, check=False)
+    res = subprocess.run(
+        [sys.executable, str(ROOT / "train.py"), "--out", str(out), "--resume", "--eval-episodes", "0"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=900,
+        check=False,
+    )
     assert res.returncode == 0 and "no checkpoint yet: starting its run from chunk 0" in res.stdout, res.stderr
     assert (out / "model.msgpack").is_file()

@@ -41,8 +41,9 @@ def reduced(curves, tmp_path_factory):
     config = DDQNConfig(num_envs=4, total_steps=4 * 250, learning_starts=64, batch_size=16, buffer_size=500)
     tr = make_train(config, params)
     nets = jax.vmap(tr.init)(jax.random.split(jax.random.key(0), 2)).params  # two untrained seeds
-    run = lambda stages=None: fig2.run(tr.network, nets, config, params, fixed, GRID, workers=1, log=lambda m: None,
-                                       stages=stages)
+    run = lambda stages=None: fig2.run(
+        tr.network, nets, config, params, fixed, GRID, workers=1, log=lambda m: None, stages=stages
+    )
     from semuav_jax.runfolder import RunFolder
 
     folder, logged = RunFolder.claim(tmp_path_factory.mktemp("stages"), "eval.py results"), []
@@ -67,7 +68,15 @@ def test_reduced_run_properties(reduced):
         assert 0 <= b["symbols_per_served"][0] <= 1 and b["dwell_per_served_s"][0] >= 0
     for p in r["panel_b"].values():
         assert all(0 <= s <= 1 for s in p["symbols_per_covered"]) and len(p["coverage"]) == 2
-    assert set(r["paths"]) == {"agent", "greedy v_b*", "tsp v_b*", "greedy-dwell", "tsp-dwell", "planner", "exact planner"}
+    assert set(r["paths"]) == {
+        "agent",
+        "greedy v_b*",
+        "tsp v_b*",
+        "greedy-dwell",
+        "tsp-dwell",
+        "planner",
+        "exact planner",
+    }
     for p in r["paths"].values():
         np.testing.assert_array_equal(p["q"][0], [0.0, 300.0])
         assert len(p["q"]) == round(p["mission_time"] / 0.5) + 1
@@ -118,8 +127,23 @@ def test_figures(reduced, tmp_path):
 
 def _quick(out, devices):
     env = {**os.environ, "XLA_FLAGS": f"--xla_force_host_platform_device_count={devices}"}
-    cmd = [sys.executable, str(ROOT / "eval.py"), "--quick", "--out", str(out), "--layouts", "6",
-           "--validation-layouts", "4", "--bandwidths", "25000", "--velocities", "8.9", "--workers", "1"]
+    cmd = [
+        sys.executable,
+        str(ROOT / "eval.py"),
+        "--quick",
+        "--out",
+        str(out),
+        "--layouts",
+        "6",
+        "--validation-layouts",
+        "4",
+        "--bandwidths",
+        "25000",
+        "--velocities",
+        "8.9",
+        "--workers",
+        "1",
+    ]
     res = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, env=env)
     assert res.returncode == 0, res.stderr
     r = json.loads((out / "fig2.json").read_text())
@@ -132,16 +156,25 @@ def test_quick_is_the_same_with_1_and_2_host_devices(tmp_path):
     assert _quick(tmp_path / "one", 1) == _quick(tmp_path / "two", 2)
 
 
-@pytest.mark.parametrize("args, msg", [
-    (["--bandwidths", "nan"], "--bandwidths must be finite and > 0"),
-    (["--velocities", "0"], "--velocities must be finite and > 0"),
-    (["--layouts", "1"], "--layouts must be >= 2"),
-    (["--quick", "--agent", "x"], "drop --agent or --quick"),
-    (["--bandwidths", "20000.21", "20000.24"], "--bandwidths 20000.21 and 20000.24 would both be named 20.0002 kHz"),
-    (["--bandwidths", "5000", "25000.000001"], "25000.0 and 25000.000001 would both be named 25 kHz"),  # with the panels' 25 kHz
-    (["--total-steps", "0"], "unrecognized arguments: --total-steps 0"),  # training options belong to train.py
-    (["--total-steps", "-1"], "unrecognized arguments: --total-steps -1"),
-])
+@pytest.mark.parametrize(
+    "args, msg",
+    [
+        (["--bandwidths", "nan"], "--bandwidths must be finite and > 0"),
+        (["--velocities", "0"], "--velocities must be finite and > 0"),
+        (["--layouts", "1"], "--layouts must be >= 2"),
+        (["--quick", "--agent", "x"], "drop --agent or --quick"),
+        (
+            ["--bandwidths", "20000.21", "20000.24"],
+            "--bandwidths 20000.21 and 20000.24 would both be named 20.0002 kHz",
+        ),
+        (
+            ["--bandwidths", "5000", "25000.000001"],
+            "25000.0 and 25000.000001 would both be named 25 kHz",
+        ),  # with the panels' 25 kHz
+        (["--total-steps", "0"], "unrecognized arguments: --total-steps 0"),  # training options belong to train.py
+        (["--total-steps", "-1"], "unrecognized arguments: --total-steps -1"),
+    ],
+)
 def test_eval_bad_options(tmp_path, args, msg, capsys):
     """One line on stderr, exit code 2 (in-process: an exception would fail the test instead)."""
     from semuav_jax.cli import eval as cli_eval
@@ -176,14 +209,23 @@ def test_eval_out_or_agent_that_cannot_be_used_is_one_line(tmp_path, capsys):
     has no ddqn block or a key DDQNConfig does not know: exit code 2, one line, nothing evaluated."""
     f = tmp_path / "f"
     f.write_text("x")
-    for out, msg in ((f, "is a file"), (f / "sub", "is a file"), (Path("/proc/semuav_results"), "cannot write to --out")):
+    for out, msg in (
+        (f, "is a file"),
+        (f / "sub", "is a file"),
+        (Path("/proc/semuav_results"), "cannot write to --out"),
+    ):
         code, err = _eval_main(capsys, "--out", str(out), "--agent", str(tmp_path / "none"))
         assert code == 2 and msg in err and err.count("\n") == 1, err
     run = tmp_path / "run"
     run.mkdir()
     (run / "model.msgpack").write_bytes(b"not read")
-    config = {"scenario": "random", "reward_mode": "gain", "bandwidth": 25e3, "kappa_c": 10.0,
-              "ddqn": {**DDQNConfig().to_dict(), "learning_rate": 1e-3}}
+    config = {
+        "scenario": "random",
+        "reward_mode": "gain",
+        "bandwidth": 25e3,
+        "kappa_c": 10.0,
+        "ddqn": {**DDQNConfig().to_dict(), "learning_rate": 1e-3},
+    }
     (run / "config.json").write_text(json.dumps(config))
     code, err = _eval_main(capsys, "--out", str(tmp_path / "o"), "--agent", str(run))
     assert code == 2 and "unknown key in its 'ddqn' block: learning_rate" in err and err.count("\n") == 1, err

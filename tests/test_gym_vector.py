@@ -17,8 +17,10 @@ def make_pair(curves, n, actions="table", mode=AutoresetMode.NEXT_STEP):
     """(ours, SyncVectorEnv over n SemUAVGymEnv). The destination 22 m from q0: some episodes arrive
     within a few slots, the others run to t = K, so sub-envs end and autoreset at different steps."""
     kw = {"num_envs": n, "actions": actions, "curves": curves, "K": K, "q_fin": [22.0, 300.0]}
-    return (gymnasium.make_vec("SemUAV-v0", vectorization_mode="vector_entry_point", autoreset_mode=mode, **kw),
-            gymnasium.make_vec("SemUAV-v0", vectorization_mode="sync", vector_kwargs={"autoreset_mode": mode}, **kw))
+    return (
+        gymnasium.make_vec("SemUAV-v0", vectorization_mode="vector_entry_point", autoreset_mode=mode, **kw),
+        gymnasium.make_vec("SemUAV-v0", vectorization_mode="sync", vector_kwargs={"autoreset_mode": mode}, **kw),
+    )
 
 
 def assert_infos_equal(a: dict, b: dict):
@@ -29,16 +31,19 @@ def assert_infos_equal(a: dict, b: dict):
         elif x.dtype == object:  # final_obs: an observation where the mask is set, else None
             assert [o is None for o in x] == [o is None for o in b[k]]
             for o, o_ref in zip(x, b[k]):
-                np.testing.assert_allclose(o if o is not None else 0.0, o_ref if o_ref is not None else 0.0,
-                                           rtol=1e-5, atol=1e-5)
+                np.testing.assert_allclose(
+                    o if o is not None else 0.0, o_ref if o_ref is not None else 0.0, rtol=1e-5, atol=1e-5
+                )
         elif k.startswith("_") or x.dtype == bool:
             np.testing.assert_array_equal(x, b[k], err_msg=k)
         else:  # vmap rounds float32 differently from one env at a time: equal up to rounding
             np.testing.assert_allclose(x, b[k], rtol=1e-5, atol=1e-5, err_msg=k)
 
 
-@pytest.mark.parametrize("actions, mode", [("table", AutoresetMode.NEXT_STEP), ("waypoint", AutoresetMode.NEXT_STEP),
-                                           ("table", AutoresetMode.SAME_STEP)])
+@pytest.mark.parametrize(
+    "actions, mode",
+    [("table", AutoresetMode.NEXT_STEP), ("waypoint", AutoresetMode.NEXT_STEP), ("table", AutoresetMode.SAME_STEP)],
+)
 def test_vector_episodes_equal_single_envs(curves, actions, mode):
     """Same seeds, same actions: the vector env's episodes (through autoresets at different steps)
     are those of Gymnasium's SyncVectorEnv over n SemUAVGymEnv, infos and masks included."""
@@ -108,28 +113,34 @@ def test_one_compiled_step(curves):
     assert gym_vector._vector_step._cache_size() == compiled
 
 
-@pytest.mark.parametrize("kw, match", [
-    ({"num_envs": 0}, "num_envs must be an integer >= 1, got 0"),
-    ({"num_envs": -3}, "got -3"),
-    ({"num_envs": 2.5}, "got 2.5"),
-    ({"num_envs": True}, "got True"),
-    ({"actions": "speed"}, "actions must be one of .*got 'speed'"),
-    ({"render_mode": "human"}, "render_mode must be None or one of .*got 'human'"),
-])
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        ({"num_envs": 0}, "num_envs must be an integer >= 1, got 0"),
+        ({"num_envs": -3}, "got -3"),
+        ({"num_envs": 2.5}, "got 2.5"),
+        ({"num_envs": True}, "got True"),
+        ({"actions": "speed"}, "actions must be one of .*got 'speed'"),
+        ({"render_mode": "human"}, "render_mode must be None or one of .*got 'human'"),
+    ],
+)
 def test_bad_constructor_arguments(curves, kw, match):
     with pytest.raises(ValueError, match=match) as err:
         SemUAVVectorEnv(**({"num_envs": 2} | kw), curves=curves, K=K)
     assert "\n" not in str(err.value)
 
 
-@pytest.mark.parametrize("actions, match", [
-    (np.zeros(3, np.int32), r"shape \(4,\), got int32 \(3,\)"),
-    (np.zeros((4, 1), np.int32), r"got int32 \(4, 1\)"),
-    (np.zeros(4, np.float32), "got float32"),
-    (np.zeros(4, bool), "got bool"),
-    (np.array([0, 1, 9, 2]), r"in \[0, 8\], got values in \[0, 9\]"),
-    (np.array([0, -1, 2, 2]), r"got values in \[-1, 2\]"),
-])
+@pytest.mark.parametrize(
+    "actions, match",
+    [
+        (np.zeros(3, np.int32), r"shape \(4,\), got int32 \(3,\)"),
+        (np.zeros((4, 1), np.int32), r"got int32 \(4, 1\)"),
+        (np.zeros(4, np.float32), "got float32"),
+        (np.zeros(4, bool), "got bool"),
+        (np.array([0, 1, 9, 2]), r"in \[0, 8\], got values in \[0, 9\]"),
+        (np.array([0, -1, 2, 2]), r"got values in \[-1, 2\]"),
+    ],
+)
 def test_bad_actions(curves, actions, match):
     env = SemUAVVectorEnv(num_envs=E, curves=curves, K=K)
     env.reset(seed=0)

@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 
 from semuav_jax.curves import load_curves, save_curves
-from semuav_jax.jscc import M, power_normalize, prefix_mask, quantize_iq, truncate
-from semuav_jax.jscc import data
+from semuav_jax.jscc import M, data, power_normalize, prefix_mask, quantize_iq, truncate
 from semuav_jax.jscc.__main__ import main
 from semuav_jax.jscc.evaluate import default_model_path, load_model, sha256_file
 from semuav_jax.jscc.model import DeepJSCC, latent_to_symbols, received_plane, symbols_to_latent
@@ -71,9 +70,11 @@ def test_mask_input_decoder_sees_exactly_the_received_entries():
     assert plane.sum(axis=(1, 2, 3)).tolist() == [0, 34, 2 * M]
     np.testing.assert_array_equal(plane, np.asarray(symbols_to_latent(prefix_mask(k) * (1.0 + 1.0j))))
     net = DeepJSCC(8, mask_input=True)
-    shapes = jax.eval_shape(net.init, jax.random.PRNGKey(0), jnp.zeros((1, 32, 32, 3)), jnp.array([M]),
-                            jax.random.PRNGKey(1), 30.0)["params"]
+    shapes = jax.eval_shape(
+        net.init, jax.random.PRNGKey(0), jnp.zeros((1, 32, 32, 3)), jnp.array([M]), jax.random.PRNGKey(1), 30.0
+    )["params"]
     assert shapes["decoder"]["Conv_0"]["kernel"].shape[2] == 16  # 8 latent + 8 mask channels
+
 
 def test_quantizer_is_8_bit_and_clips():
     x = jnp.linspace(-6.0, 6.0, 10001)

@@ -18,9 +18,16 @@ from semuav_jax import io
 from semuav_jax.jscc import data
 from semuav_jax.jscc import train as train_mod
 from semuav_jax.jscc.__main__ import main
+from semuav_jax.jscc.train import (
+    CKPT_FILE,
+    CONFIG_FILE,
+    TrainConfig,
+    load_checkpoint,
+    load_config,
+    make_optimizer,
+    train,
+)
 from semuav_jax.runfolder import MARKER
-from semuav_jax.jscc.train import (CKPT_FILE, CONFIG_FILE, TrainConfig, load_checkpoint, load_config,
-                                   make_optimizer, train)
 
 CFG = TrainConfig(steps=2, batch=2, width=4, monotone_weight=0.0, synthetic_fraction=0.0)
 PHOTOS = [np.random.default_rng(0).random((40, 40, 3), dtype=np.float32)]
@@ -47,8 +54,12 @@ def _write_batch(path, d):
 
 
 def _batch(rng, n=3):
-    return {b"batch_label": b"a batch", b"labels": rng.integers(10, size=n).tolist(),
-            b"data": rng.integers(0, 256, (n, 3072), dtype=np.uint8), b"filenames": [b"x.png"] * n}
+    return {
+        b"batch_label": b"a batch",
+        b"labels": rng.integers(10, size=n).tolist(),
+        b"data": rng.integers(0, 256, (n, 3072), dtype=np.uint8),
+        b"filenames": [b"x.png"] * n,
+    }
 
 
 def test_genuine_cifar10_batches_load_as_with_pickle(tmp_path):
@@ -172,14 +183,17 @@ def test_next_run_removes_temp_files_of_a_killed_save(tmp_path, monkeypatch, how
     assert sorted(p.name for p in out.iterdir()) == sorted([MARKER, CKPT_FILE, CONFIG_FILE, *others])
 
 
-@pytest.mark.parametrize("args, msg", [
-    (["--lr", "nan"], "lr must be finite and > 0"),
-    (["--lr", "inf"], "lr must be finite and > 0"),
-    (["--steps", "0"], "steps must be a positive integer"),
-    (["--synthetic-fraction", "nan"], "synthetic_fraction must be in [0, 1]"),
-    (["--snr-db", "inf"], "snr_db must be finite"),
-    (["--minutes", "nan"], "--minutes must be positive"),
-])
+@pytest.mark.parametrize(
+    "args, msg",
+    [
+        (["--lr", "nan"], "lr must be finite and > 0"),
+        (["--lr", "inf"], "lr must be finite and > 0"),
+        (["--steps", "0"], "steps must be a positive integer"),
+        (["--synthetic-fraction", "nan"], "synthetic_fraction must be in [0, 1]"),
+        (["--snr-db", "inf"], "snr_db must be finite"),
+        (["--minutes", "nan"], "--minutes must be positive"),
+    ],
+)
 def test_cli_rejects_bad_values_before_loading_or_training(tmp_path, capsys, monkeypatch, args, msg):
     monkeypatch.setattr(data, "builtin_train_photos", _no)
     monkeypatch.setattr(train_mod, "train", _no)
@@ -242,7 +256,9 @@ def test_kill_at_any_write_of_a_save_resumes_to_the_uninterrupted_run(tmp_path, 
         train(KILL_CFG, PHOTOS, out=out, resume=n > 1, progress=False, log_every=1)
         _same_state(_saved(out, KILL_CFG), ref)
         assert load_config(out)[0] == KILL_CFG
-        assert sorted(p.name for p in out.iterdir()) == sorted([MARKER, CKPT_FILE, CONFIG_FILE])  # the temporary file removed
+        assert sorted(p.name for p in out.iterdir()) == sorted(
+            [MARKER, CKPT_FILE, CONFIG_FILE]
+        )  # the temporary file removed
 
 
 @pytest.mark.slow

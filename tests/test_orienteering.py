@@ -74,7 +74,11 @@ def test_off_grid_service_times_stay_within_budget_and_near_optimal():
         plan = solve(travel, service, prize, budget)
         check_plan(plan, travel, service, prize, budget)
         rounded = np.ceil(service / orienteering.TIME_STEP_S) * orienteering.TIME_STEP_S
-        assert brute_force(travel, rounded, prize, budget) - 1e-9 <= plan[2] <= brute_force(travel, service, prize, budget) + 1e-9
+        assert (
+            brute_force(travel, rounded, prize, budget) - 1e-9
+            <= plan[2]
+            <= brute_force(travel, service, prize, budget) + 1e-9
+        )
 
 
 def test_generous_budget_visits_everything_at_the_top_option_and_tight_budget_nothing():

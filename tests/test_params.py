@@ -2,20 +2,34 @@
 
 import numpy as np
 import pytest
+from conftest import synthetic_curves
 
 from semuav_jax.curves import PSNRCurves, load_curves, save_curves
 from semuav_jax.params import make_params, validate_params
-from conftest import synthetic_curves
 
 
 def test_defaults_match_model_md(params):
     assert (params.Lx, params.Ly, params.K, params.tau, params.H, params.D_com) == (1000, 600, 250, 0.5, 100, 105)
-    assert (params.P_n, params.noise, params.B, params.r_arr, params.a_max, params.v_max) == (1e-3, 1e-9, 20e3, 15, 5, 25)
+    assert (params.P_n, params.noise, params.B, params.r_arr, params.a_max, params.v_max) == (
+        1e-3,
+        1e-9,
+        20e3,
+        15,
+        5,
+        25,
+    )
     assert params.N == 10 and params.M == 256 and params.num_actions == 9
     np.testing.assert_array_equal(params.q0, [0, 300])
     np.testing.assert_array_equal(params.q_fin, [1000, 300])
     np.testing.assert_array_equal(params.bs_pos, [500, 300])
-    assert (params.bs_h, params.P_b, params.B_b, params.L_cmd, params.proc_max, params.beta) == (25, 1, 100e3, 64, 0.1, 16)
+    assert (params.bs_h, params.P_b, params.B_b, params.L_cmd, params.proc_max, params.beta) == (
+        25,
+        1,
+        100e3,
+        64,
+        0.1,
+        16,
+    )
     assert (params.r_g, params.P_miss, params.kappa_d, params.kappa_c, params.eps) == (500, 500, 1, 10, 1e-6)
 
 

@@ -30,7 +30,9 @@ def test_visit_options_are_ordered(params):
     w, sym, service, target = visit_options(20.0, params)
     passes = w > 0
     # slower passes take longer and receive more; every option is on the 0.25 s grid
-    assert np.all(np.diff(service[passes]) <= 0) and np.all(np.diff(sym[passes]) <= 0) and service[0] > service[passes][-1]
+    assert (
+        np.all(np.diff(service[passes]) <= 0) and np.all(np.diff(sym[passes]) <= 0) and service[0] > service[passes][-1]
+    )
     assert np.all(sym <= params.M) and np.allclose(service * 4, np.round(service * 4))
     assert np.all(target[passes] == params.M) and np.all(target[~passes] == sym[~passes])
 
@@ -44,7 +46,9 @@ def test_plans_fit_the_budget_and_fly_home(params):
     # the chosen plan of each layout fits T + PLAN_SLACK_S under the plan's own time model
     pos, img = (np.asarray(x) for x in layouts(keys, p))
     for e in range(4):
-        travel, service, prize, w, target = problems(pos[e:e + 1].astype(float), img[e:e + 1], p, float(plans.v_p[e]))
+        travel, service, prize, w, target = problems(
+            pos[e : e + 1].astype(float), img[e : e + 1], p, float(plans.v_p[e])
+        )
         o = orienteering.solve(travel[0], service[0], prize[0], 125.0 + PLAN_SLACK_S)
         np.testing.assert_array_equal(o[0], order[e])
     m = {k: np.asarray(v) for k, v in run(planner, keys, p, plans).items()}

@@ -42,7 +42,9 @@ def test_options_by_hand(params):
     assert np.all(np.diff(service[0, 0, passes]) <= 0) and np.all(np.diff(after[0, 0, passes]) <= 1e-9)
     # stops: more symbols take at least as long; the target is what ends the visit in flight
     stops = ~passes
-    assert np.all(np.diff(service[0, 0, stops]) >= 0) and np.all(after[0, 0, stops] >= np.minimum(target[0, 0, stops], p.M))
+    assert np.all(np.diff(service[0, 0, stops]) >= 0) and np.all(
+        after[0, 0, stops] >= np.minimum(target[0, 0, stops], p.M)
+    )
     # a full hover: braking from 25 m/s at 3 m/s^2 and speeding up at 5 m/s^2 cost 25^2/50 (1/3 + 1/5) = 6.67 s
     assert service[0, 0, -1] >= 6.67 and np.all(np.isclose(service * 4, np.round(service * 4)))
     # symbols already received: nothing left to gain from a device that holds M

@@ -20,8 +20,17 @@ def test_title_shows_time_and_mean_psnr(params):
     """The clock is t tau of K tau; the PSNR is the mean over devices of phi (eq. 8.1)."""
     ax = Figure().add_subplot()
     m = np.zeros(params.N)
-    draw(ax, params, np.asarray(params.device_pos) if params.layout == "fixed" else np.full((params.N, 2), 50.0),
-         m, np.zeros(params.N, bool), np.array([[0.0, 300.0], [5.0, 300.0]]), 37, 21.456, title="greedy")
+    draw(
+        ax,
+        params,
+        np.asarray(params.device_pos) if params.layout == "fixed" else np.full((params.N, 2), 50.0),
+        m,
+        np.zeros(params.N, bool),
+        np.array([[0.0, 300.0], [5.0, 300.0]]),
+        37,
+        21.456,
+        title="greedy",
+    )
     assert ax.get_title() == "greedy\nt =  18.5 s of 125 s   mean PSNR 21.46 dB"
     assert ground_range(params) == pytest.approx(np.sqrt(105.0**2 - float(params.H) ** 2))
 

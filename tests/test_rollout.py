@@ -109,7 +109,9 @@ def test_traced_bad_value_is_flagged_never_a_number(curves, bad):
 
     @jax.jit
     def run(x):
-        return jax.vmap(lambda k: episode(toward_goal, k, params.replace(**{name: x}), policy_state=jnp.zeros(2))[0])(keys)
+        return jax.vmap(lambda k: episode(toward_goal, k, params.replace(**{name: x}), policy_state=jnp.zeros(2))[0])(
+            keys
+        )
 
     good = run(getattr(params, name))
     assert bool(np.all(good["valid"])) and np.all(np.isfinite(good["mean_psnr"]))
@@ -138,10 +140,13 @@ def test_invalid_values_never_give_a_believable_number(curves, name, kind):
     assert not bool(m["valid"]) and np.isnan(float(m["mean_psnr"])) and not bool(m["arrived"])
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _short_episode_fn(name):
-    return jax.jit(lambda params, x: episode(toward_goal, jax.random.key(0), params.replace(**{name: x}),
-                                             policy_state=jnp.zeros(2))[0])
+    return jax.jit(
+        lambda params, x: episode(
+            toward_goal, jax.random.key(0), params.replace(**{name: x}), policy_state=jnp.zeros(2)
+        )[0]
+    )
 
 
 def _short_episode(params, name, value):

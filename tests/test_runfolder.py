@@ -88,8 +88,14 @@ f.release()
 
 
 def _holder(folder, kind="test"):
-    p = subprocess.Popen([sys.executable, "-c", HOLD, str(folder), kind], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                         text=True, env=ENV, cwd=ROOT)
+    p = subprocess.Popen(
+        [sys.executable, "-c", HOLD, str(folder), kind],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+        env=ENV,
+        cwd=ROOT,
+    )
     assert p.stdout.readline().strip() == "ready"
     return p
 
@@ -112,13 +118,38 @@ def test_a_stale_lock_of_a_killed_process_is_taken_over(tmp_path):
     RunFolder.claim(tmp_path, "test").release()
 
 
-TINY = ["--curves", "synthetic", "--num-envs", "4", "--steps-per-chunk", "5", "--total-steps", "80",
-        "--learning-starts", "32", "--batch-size", "8", "--segments", "2", "--eval-episodes", "0", "--workers", "1"]
+TINY = [
+    "--curves",
+    "synthetic",
+    "--num-envs",
+    "4",
+    "--steps-per-chunk",
+    "5",
+    "--total-steps",
+    "80",
+    "--learning-starts",
+    "32",
+    "--batch-size",
+    "8",
+    "--segments",
+    "2",
+    "--eval-episodes",
+    "0",
+    "--workers",
+    "1",
+]
 
 
 def _train(*args, timeout=600):
-    return subprocess.run([sys.executable, str(ROOT / "train.py"), *args], capture_output=True, text=True, cwd=ROOT, check=False,
-                          env=ENV, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, str(ROOT / "train.py"), *args],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        check=False,
+        env=ENV,
+        timeout=timeout,
+    )
 
 
 @pytest.mark.slow
@@ -152,7 +183,9 @@ def test_train_refuses_to_overwrite_the_users_run_named_files(tmp_path, capsys):
     assert main([*TINY, "--out", str(out), "--overwrite"]) == 2
     assert "did not write" in capsys.readouterr().err
     assert (out / "config.json").read_text() == "my config" and sorted(p.name for p in out.iterdir()) == [
-        "config.json", "metrics.csv"]
+        "config.json",
+        "metrics.csv",
+    ]
 
 
 def test_a_run_stopped_before_its_first_checkpoint_is_restartable(tmp_path):
@@ -182,4 +215,7 @@ def test_eval_refuses_a_folder_of_the_users_files(tmp_path, capsys):
         assert main(["--quick", "--out", str(tmp_path), *extra]) == 2
         assert "did not write" in capsys.readouterr().err
     assert sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*")) == [
-        "notes.txt", "stages", "stages/planner_at_5_kHz.msgpack"]
+        "notes.txt",
+        "stages",
+        "stages/planner_at_5_kHz.msgpack",
+    ]

@@ -6,6 +6,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from test_control import time_home_by_hand
 
 from semuav_jax.actions import action_to_accel
 from semuav_jax.agents.ddqn import DDQNConfig, make_train
@@ -13,7 +14,6 @@ from semuav_jax.agents.shield import home_action, home_speed, shield
 from semuav_jax.control import time_home
 from semuav_jax.env import reset_state
 from semuav_jax.rollout import episode
-from test_control import time_home_by_hand
 
 
 def test_time_home_by_hand(params):
@@ -30,8 +30,12 @@ def test_time_home_by_hand(params):
     assert th([500.0, 300.0], [10.0, -20.0]) == pytest.approx(4.0 + (540.0 - 215.89) / v_home + 13.687, abs=1e-3)
     # 50 m out at 25 m/s: faster than the approach speed sqrt(2.5 * 50) = 11.2 m/s, overshoot and back
     assert th([950.0, 300.0], [25.0, 0.0]) > th([950.0, 300.0], [11.0, 0.0]) + 4.0  # 10.95 s vs 6.50 s
-    for q, v in (([120.0, 40.0], [-20.0, 7.0]), ([980.0, 330.0], [15.0, 20.0]), ([700.0, 590.0], [3.0, 1.0]),
-                 ([950.0, 300.0], [25.0, 0.0])):
+    for q, v in (
+        ([120.0, 40.0], [-20.0, 7.0]),
+        ([980.0, 330.0], [15.0, 20.0]),
+        ([700.0, 590.0], [3.0, 1.0]),
+        ([950.0, 300.0], [25.0, 0.0]),
+    ):
         assert th(q, v) == pytest.approx(time_home_by_hand(q, v, 25.0, v_home), rel=1e-5)
     # inside the arrival disk at rest: only the turn (acceleration) term is left
     assert th([990.0, 300.0], [0.0, 0.0]) == pytest.approx(v_home / 5.0)
@@ -95,8 +99,16 @@ def test_any_policy_arrives_with_the_shield(params):
 @pytest.mark.slow
 def test_training_stores_shielded_actions(params):
     """With epsilon = 1 throughout, every training episode still arrives when the shield is on."""
-    base = DDQNConfig(num_envs=16, total_steps=16 * 250 * 2, steps_per_chunk=250, learning_starts=128,
-                      batch_size=32, buffer_size=8_000, eps_start=1.0, eps_end=1.0)
+    base = DDQNConfig(
+        num_envs=16,
+        total_steps=16 * 250 * 2,
+        steps_per_chunk=250,
+        learning_starts=128,
+        batch_size=32,
+        buffer_size=8_000,
+        eps_start=1.0,
+        eps_end=1.0,
+    )
     out = {}
     for margin in (2.0, None):
         tr = make_train(dataclasses.replace(base, shield_margin=margin), params)

@@ -12,8 +12,26 @@ from semuav_jax.agents.ddqn import DDQNConfig
 from semuav_jax.curves import save_curves
 
 ROOT = Path(__file__).resolve().parents[1]
-TINY = ["--num-envs", "4", "--steps-per-chunk", "5", "--total-steps", "80", "--learning-starts", "32",
-        "--batch-size", "8", "--segments", "2", "--eval-episodes", "4", "--validation-episodes", "4", "--workers", "1"]
+TINY = [
+    "--num-envs",
+    "4",
+    "--steps-per-chunk",
+    "5",
+    "--total-steps",
+    "80",
+    "--learning-starts",
+    "32",
+    "--batch-size",
+    "8",
+    "--segments",
+    "2",
+    "--eval-episodes",
+    "4",
+    "--validation-episodes",
+    "4",
+    "--workers",
+    "1",
+]
 
 
 def _train(*args):
@@ -35,8 +53,15 @@ def run_dir(tmp_path_factory, curves_file):
 
 @pytest.mark.slow
 def test_outputs(run_dir):
-    for f in ("config.json", "metrics.csv", "learning_curve.png", "checkpoint.msgpack", "model.msgpack", "eval.json",
-              "eval.md"):
+    for f in (
+        "config.json",
+        "metrics.csv",
+        "learning_curve.png",
+        "checkpoint.msgpack",
+        "model.msgpack",
+        "eval.json",
+        "eval.md",
+    ):
         assert (run_dir / f).is_file(), f
     cfg = json.loads((run_dir / "config.json").read_text())
     assert cfg["seeds"] == 2 and cfg["ddqn"]["lr"] == DDQNConfig().lr and cfg["command"].startswith("python train.py")
@@ -54,8 +79,22 @@ def test_outputs(run_dir):
 def test_options_come_from_the_config_and_the_preset(tmp_path, curves_file):
     """--preset paper sets the paper's agent; a config field given on the command line overrides it."""
     out = tmp_path / "p"
-    res = _train("--curves", curves_file, "--out", str(out), "--preset", "paper", "--hidden", "32", "16",
-                 "--shield-margin", "none", *TINY[:-6], "--eval-episodes", "0")
+    res = _train(
+        "--curves",
+        curves_file,
+        "--out",
+        str(out),
+        "--preset",
+        "paper",
+        "--hidden",
+        "32",
+        "16",
+        "--shield-margin",
+        "none",
+        *TINY[:-6],
+        "--eval-episodes",
+        "0",
+    )
     assert res.returncode == 0, res.stderr
     cfg = json.loads((out / "config.json").read_text())
     d = cfg["ddqn"]
@@ -67,9 +106,28 @@ def test_options_come_from_the_config_and_the_preset(tmp_path, curves_file):
 def test_same_seed_same_weights(run_dir, curves_file, tmp_path):
     """A second fresh run of the same command writes bit-identical weights (and a different seed does not)."""
     same, other = tmp_path / "same", tmp_path / "other"
-    assert _train("--curves", curves_file, "--out", str(same), "--seeds", "2", *TINY[:-6], "--eval-episodes", "0").returncode == 0
-    assert _train("--curves", curves_file, "--out", str(other), "--seeds", "2", "--seed", "1", *TINY[:-6],
-                  "--eval-episodes", "0").returncode == 0
+    assert (
+        _train(
+            "--curves", curves_file, "--out", str(same), "--seeds", "2", *TINY[:-6], "--eval-episodes", "0"
+        ).returncode
+        == 0
+    )
+    assert (
+        _train(
+            "--curves",
+            curves_file,
+            "--out",
+            str(other),
+            "--seeds",
+            "2",
+            "--seed",
+            "1",
+            *TINY[:-6],
+            "--eval-episodes",
+            "0",
+        ).returncode
+        == 0
+    )
     assert (same / "model.msgpack").read_bytes() == (run_dir / "model.msgpack").read_bytes()
     assert (other / "model.msgpack").read_bytes() != (run_dir / "model.msgpack").read_bytes()
 
@@ -100,7 +158,9 @@ def test_resume_drops_metrics_rows_the_checkpoint_lacks(run_dir, curves_file, tm
     """metrics.csv is written before the checkpoint; rows of a chunk whose checkpoint a kill
     prevented are dropped on resume, so the resumed run's metrics equal the uninterrupted run's."""
     out = tmp_path / "r"
-    assert _train("--curves", curves_file, "--out", str(out), "--seeds", "2", *TINY, "--max-segments", "1").returncode == 0
+    assert (
+        _train("--curves", curves_file, "--out", str(out), "--seeds", "2", *TINY, "--max-segments", "1").returncode == 0
+    )
     with open(out / "metrics.csv", "a") as f:
         f.write("0,3,1,1,1,1,1,1,1,1,1\n")
     (out / "checkpoint.msgpack.abcd1234.tmp").write_bytes(b"half a checkpoint")
@@ -113,11 +173,30 @@ def test_resume_drops_metrics_rows_the_checkpoint_lacks(run_dir, curves_file, tm
 @pytest.mark.slow
 def test_resume_refuses_other_options_and_broken_checkpoints(curves_file, tmp_path):
     out = tmp_path / "r"
-    assert _train("--curves", curves_file, "--out", str(out), "--seeds", "2", *TINY, "--max-segments", "1").returncode == 0
-    res = _train("--out", str(out), "--resume", "--seed", "5", "--num-envs", "4", "--bandwidth", "5000",
-                 "--total-steps", "160", "--curves", "synthetic")
+    assert (
+        _train("--curves", curves_file, "--out", str(out), "--seeds", "2", *TINY, "--max-segments", "1").returncode == 0
+    )
+    res = _train(
+        "--out",
+        str(out),
+        "--resume",
+        "--seed",
+        "5",
+        "--num-envs",
+        "4",
+        "--bandwidth",
+        "5000",
+        "--total-steps",
+        "160",
+        "--curves",
+        "synthetic",
+    )
     assert res.returncode == 2 and "--seed 5 (saved 0)" in res.stderr and "--num-envs" not in res.stderr
-    for clash in ("--bandwidth 5000.0 (saved 25000.0)", "--total-steps 160 (saved 80)", f"--curves synthetic (saved {curves_file})"):
+    for clash in (
+        "--bandwidth 5000.0 (saved 25000.0)",
+        "--total-steps 160 (saved 80)",
+        f"--curves synthetic (saved {curves_file})",
+    ):
         assert clash in res.stderr, res.stderr
     ckpt = (out / "checkpoint.msgpack").read_bytes()
     (out / "checkpoint.msgpack").write_bytes(ckpt[: len(ckpt) // 2])
@@ -186,7 +265,9 @@ def test_out_that_is_a_file(tmp_path, curves_file):
         assert res.returncode == 2 and "is a file" in res.stderr and "Traceback" not in res.stderr
     # a folder nothing can be created in (/proc refuses files even to root)
     res = _train("--curves", curves_file, "--out", "/proc/semuav_run", *TINY)
-    assert res.returncode == 2 and "cannot write to --out /proc/semuav_run" in res.stderr and "Traceback" not in res.stderr
+    assert (
+        res.returncode == 2 and "cannot write to --out /proc/semuav_run" in res.stderr and "Traceback" not in res.stderr
+    )
 
 
 def _resume_error(capsys, out) -> str:
@@ -207,10 +288,12 @@ def test_resume_of_a_broken_run_config_is_one_line(tmp_path, capsys):
     out = tmp_path / "r"
     out.mkdir()
     (out / "checkpoint.msgpack").write_bytes(b"not read")
-    for broken, msg in (({k: v for k, v in good.items() if k != "ddqn"}, "no 'ddqn'"),
-                        ({k: v for k, v in good.items() if k != "bandwidth"}, "no 'bandwidth'"),
-                        ({**good, "ddqn": {**good["ddqn"], "learning_rate": 1e-3}}, "unknown key in its 'ddqn' block: learning_rate"),
-                        ([1, 2], "not a train.py run config")):
+    for broken, msg in (
+        ({k: v for k, v in good.items() if k != "ddqn"}, "no 'ddqn'"),
+        ({k: v for k, v in good.items() if k != "bandwidth"}, "no 'bandwidth'"),
+        ({**good, "ddqn": {**good["ddqn"], "learning_rate": 1e-3}}, "unknown key in its 'ddqn' block: learning_rate"),
+        ([1, 2], "not a train.py run config"),
+    ):
         (out / "config.json").write_text(json.dumps(broken))
         err = _resume_error(capsys, out)
         assert msg in err and str(out / "config.json") in err, err
@@ -227,9 +310,14 @@ def test_sigint_stops_with_one_line_and_resumes(curves_file, tmp_path):
     out = tmp_path / "r"
     longer = [*TINY[:4], "--total-steps", "2000", *TINY[6:10], "--segments", "10", "--eval-episodes", "0"]
     # a test run in the background inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler
-    proc = subprocess.Popen([sys.executable, str(ROOT / "train.py"), "--curves", curves_file, "--out", str(out), *longer],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    proc = subprocess.Popen(
+        [sys.executable, str(ROOT / "train.py"), "--curves", curves_file, "--out", str(out), *longer],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     deadline = time.time() + 300
     while not (out / "checkpoint.msgpack").exists() and time.time() < deadline:
         time.sleep(0.2)

@@ -63,8 +63,11 @@ def test_no_policy_of_ours_exceeds_it(B):
     bound = np.minimum(travel_bound(keys, p), psnr_bound(keys, p))
     rank = tsp_ranks(keys, p, workers=1)
     got = [evaluate(n, keys, p, v_b=v, rank=rank)["mean_psnr"] for n in ("greedy", "tsp") for v in (8.9, 18.0, 25.0)]
-    got += [np.asarray(dwell_metrics(f, keys, p, v, k, 0.0, rank)["mean_psnr"])
-            for f in (greedy_dwell, tsp_dwell) for v, k in ((25.0, 16.0), (25.0, 256.0), (18.0, 64.0))]
+    got += [
+        np.asarray(dwell_metrics(f, keys, p, v, k, 0.0, rank)["mean_psnr"])
+        for f in (greedy_dwell, tsp_dwell)
+        for v, k in ((25.0, 16.0), (25.0, 256.0), (18.0, 64.0))
+    ]
     got.append(np.asarray(run(planner, keys, p, make_plans(keys, p, workers=1))["mean_psnr"]))
     got.append(receding.fly(keys, p, workers=1)[0]["mean_psnr"])
     draws = jax.vmap(random_policy_state, (0, None))(jax.random.split(jax.random.PRNGKey(1), 48), p)

@@ -6,6 +6,15 @@ from semuav_jax.agents.evaluate import evaluate_agent, greedy_policy
 from semuav_jax.agents.scenarios import PAPER_DEVICE_IMG, PAPER_DEVICE_POS, scenario_params
 
 __all__ = [
-    "Agent", "DDQNConfig", "PAPER_DEVICE_IMG", "PAPER_DEVICE_POS", "QNetwork", "TrainState", "double_q_target",
-    "evaluate_agent", "greedy_policy", "make_train", "scenario_params",
+    "Agent",
+    "DDQNConfig",
+    "PAPER_DEVICE_IMG",
+    "PAPER_DEVICE_POS",
+    "QNetwork",
+    "TrainState",
+    "double_q_target",
+    "evaluate_agent",
+    "greedy_policy",
+    "make_train",
+    "scenario_params",
 ]

@@ -53,7 +53,7 @@ class Agent:
         return q_network(self.params, self.config)
 
     @classmethod
-    def from_run(cls, folder, seed: int = 0) -> "Agent":
+    def from_run(cls, folder, seed: int = 0) -> Agent:
         """Seed ``seed`` of a finished ``train.py`` run folder."""
         run, _, nets = load_run(folder)
         if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or not 0 <= seed < run["seeds"]:
@@ -61,7 +61,7 @@ class Agent:
         return cls(run, jax.tree.map(lambda w: jnp.asarray(w[seed]), nets))
 
     @classmethod
-    def shipped(cls, seed: int = 0) -> "Agent":
+    def shipped(cls, seed: int = 0) -> Agent:
         """A seed of the shipped agent (semuav_jax/data/agent, the output of ``python train.py``)."""
         return cls.from_run(shipped_folder(), seed)
 
@@ -71,7 +71,7 @@ class Agent:
         return atomic_write(path, serialization.msgpack_serialize(blob))
 
     @classmethod
-    def load(cls, path) -> "Agent":
+    def load(cls, path) -> Agent:
         """The agent saved by :meth:`save`; ValueError (one line) for any other file, and for one
         whose weights do not match its run description's network or are not finite."""
         try:

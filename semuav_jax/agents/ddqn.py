@@ -21,14 +21,14 @@ included, and the memory stores the action sent. The default learning rate is
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Callable, NamedTuple
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
 import optax
 from flax import struct
-
 from gymnax.environments import spaces
 
 from semuav_jax import actions as action_modes
@@ -71,16 +71,29 @@ class DDQNConfig:
     dueling: bool = _f(False, "dueling head: Q = V + A - mean(A) (Wang et al. 2016) instead of one linear layer")
     sorted_devices: bool = _f(True, "table actions: sort device blocks nearest first and add tanh offsets")
     shield_margin: float | None = _f(2.0, "seconds of slack of the BS's return-home shield; none: no shield")
-    actions: str = _f("waypoint", "waypoint (eq. 6.2: device, speed or hover, home) or table (the paper's 9 accelerations)")
-    bandwidth_range: tuple | None = _f((4e3, 45e3), "(lo, hi) Hz: the envs train at bandwidths evenly spaced in the range "
-                                       "(one agent for every B); none: the scenario's B")
+    actions: str = _f(
+        "waypoint", "waypoint (eq. 6.2: device, speed or hover, home) or table (the paper's 9 accelerations)"
+    )
+    bandwidth_range: tuple | None = _f(
+        (4e3, 45e3),
+        "(lo, hi) Hz: the envs train at bandwidths evenly spaced in the range "
+        "(one agent for every B); none: the scenario's B",
+    )
 
     def __post_init__(self):
         for name in ("hidden", "bandwidth_range"):  # lists (from JSON or the command line) become tuples
             if isinstance(getattr(self, name), list):
                 object.__setattr__(self, name, tuple(getattr(self, name)))
-        ints = ("num_envs", "total_steps", "steps_per_chunk", "updates_per_step", "batch_size",
-                "buffer_size", "target_period", "n_step")
+        ints = (
+            "num_envs",
+            "total_steps",
+            "steps_per_chunk",
+            "updates_per_step",
+            "batch_size",
+            "buffer_size",
+            "target_period",
+            "n_step",
+        )
         for name in ints:
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)}")
@@ -103,7 +116,9 @@ class DDQNConfig:
         if self.bandwidth_range is not None:
             lo, hi = self.bandwidth_range
             if not 0 < lo <= hi < float("inf"):
-                raise ValueError(f"bandwidth_range must be (lo, hi) with 0 < lo <= hi, finite, got {self.bandwidth_range}")
+                raise ValueError(
+                    f"bandwidth_range must be (lo, hi) with 0 < lo <= hi, finite, got {self.bandwidth_range}"
+                )
         if not self.hidden or not all(isinstance(h, int) and h >= 1 for h in self.hidden):
             raise ValueError(f"hidden must be one or more positive layer widths, got {self.hidden}")
         if not 0.0 < self.lr_end <= 1.0:
@@ -132,7 +147,7 @@ class DDQNConfig:
         return dataclasses.asdict(self)
 
     @classmethod
-    def from_dict(cls, d: dict) -> "DDQNConfig":
+    def from_dict(cls, d: dict) -> DDQNConfig:
         return cls(**d)
 
 
@@ -140,8 +155,19 @@ PRESETS = {
     "default": {},
     # the paper's configuration (MODEL.md section 6, PAPER_CLAIMS.md): paper reward with the shield, lr 5e-5,
     # MLP 128-128-64, the 9 accelerations, the raw observation, 1-step targets, trained at one bandwidth
-    "paper": {"reward_mode": "paper", "r_g": 500.0, "actions": "table", "sorted_devices": False, "lr": 5e-5, "hidden": (128, 128, 64),
-              "n_step": 1, "gamma": 0.999, "bandwidth_range": None, "dueling": False, "lr_end": 1.0},
+    "paper": {
+        "reward_mode": "paper",
+        "r_g": 500.0,
+        "actions": "table",
+        "sorted_devices": False,
+        "lr": 5e-5,
+        "hidden": (128, 128, 64),
+        "n_step": 1,
+        "gamma": 0.999,
+        "bandwidth_range": None,
+        "dueling": False,
+        "lr_end": 1.0,
+    },
 }  # DDQNConfig overrides, plus the scenario's reward_mode and arrival reward r_g
 
 
@@ -416,8 +442,14 @@ def make_train(config: DDQNConfig, env_params: EnvParams, progress=None, buffer:
         action = jax.vmap(shielded, (0, 0, axes, None))(chosen, ts.env_state, env_batch, config)
         obs, state, rew, done, _, info = env_step(jax.random.split(k_env, E), ts.env_state, action, env_batch)
         met = info["metrics"]
-        one = Transition(ts.obs, action, rew * config.reward_scale, info["final_observation"],
-                         done.astype(jnp.float32), jnp.full((E,), config.gamma, jnp.float32))
+        one = Transition(
+            ts.obs,
+            action,
+            rew * config.reward_scale,
+            info["final_observation"],
+            done.astype(jnp.float32),
+            jnp.full((E,), config.gamma, jnp.float32),
+        )
         window = jax.tree.map(lambda w, x: jnp.concatenate([w[1:], x[None]]), ts.window, one)
         ts = ts.replace(window=window, env_state=state, obs=obs)
         return ts, (done, met, jnp.mean((action != chosen).astype(jnp.float32)))
@@ -449,6 +481,7 @@ def make_train(config: DDQNConfig, env_params: EnvParams, progress=None, buffer:
             def step(ts, k):
                 ts, _ = (act_and_store if store else act)(ts, k, 1.0)
                 return ts, None
+
             return step
 
         k_fill, k_warm = jax.random.split(k_warm)
@@ -470,8 +503,9 @@ def make_train(config: DDQNConfig, env_params: EnvParams, progress=None, buffer:
         eps = epsilon(ts.step, config)
         ts, s = jax.lax.scan(one_step, ts, None, config.steps_per_chunk)
         chunk = ts.chunk + 1
-        ts = ts.replace(target_params=optax.periodic_update(ts.params, ts.target_params, chunk, config.target_period),
-                        chunk=chunk)
+        ts = ts.replace(
+            target_params=optax.periodic_update(ts.params, ts.target_params, chunk, config.target_period), chunk=chunk
+        )
         if progress is not None:
             jax.debug.callback(progress, chunk)
         n = jnp.maximum(s["episodes"].sum(), 1.0)

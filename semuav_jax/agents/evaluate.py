@@ -34,7 +34,7 @@ def agent_state(net_params) -> AgentState:
     return AgentState(net=net_params, shielded=jnp.zeros((), jnp.int32), slots=jnp.zeros((), jnp.int32))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def greedy_policy(network, config: DDQNConfig):
     """Rollout policy ``(AgentState, env_state, params) -> (accel, AgentState)``: argmax Q of the
     agent's input, through the BS's shield (unless ``config.shield_margin`` is None)."""
@@ -53,13 +53,14 @@ def evaluate_agent(network, net_params, config: DDQNConfig, keys, params: EnvPar
     """Metrics (dict of (E,) NumPy arrays, with ``shield_share``) of the greedy policy of ``net_params``
     on the episodes ``keys``; with ``trace``, also the per-slot trace of ``rollout``."""
     validate_params(params)
-    metrics, tr = rollout(greedy_policy(network, config), keys, params, agent_state(net_params), trace=trace,
-                          state_axes=None)
+    metrics, tr = rollout(
+        greedy_policy(network, config), keys, params, agent_state(net_params), trace=trace, state_axes=None
+    )
     metrics = jax.tree.map(np.asarray, metrics)
     return (metrics, jax.tree.map(np.asarray, tr)) if trace else metrics
 
 
-MAX_RUNS = 2 ** 16  # episodes (seeds x bandwidths x layouts) in one compiled evaluation
+MAX_RUNS = 2**16  # episodes (seeds x bandwidths x layouts) in one compiled evaluation
 
 
 def seed_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams, bandwidths) -> dict:
@@ -80,6 +81,6 @@ def seed_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams, ban
     chunk = max(1, MAX_RUNS // (jax.tree.leaves(nets)[0].shape[0] * max(B.size, 1)))
     parts = []
     for i in range(0, len(keys), chunk):
-        part = keys[i:i + chunk]
-        parts.append({k: v[..., :len(part)] for k, v in gather(run(nets, B, shard_episodes(part))).items()})
+        part = keys[i : i + chunk]
+        parts.append({k: v[..., : len(part)] for k, v in gather(run(nets, B, shard_episodes(part))).items()})
     return {k: np.concatenate([p[k] for p in parts], axis=-1) for k in parts[0]}

@@ -34,7 +34,7 @@ def table_features(obs):
     order = jnp.argsort(jnp.sum(dev[..., :2] ** 2, axis=-1), axis=-1)
     dev = jnp.take_along_axis(dev, order[..., None], axis=-2)
     dev = jnp.concatenate([dev, jnp.tanh(NEAR_GAIN * dev[..., :2])], axis=-1)
-    near_goal = jnp.tanh(NEAR_GAIN * glob[..., GLOBAL_FEATURES - 2:])
+    near_goal = jnp.tanh(NEAR_GAIN * glob[..., GLOBAL_FEATURES - 2 :])
     return jnp.concatenate([glob, near_goal, dev.reshape(dev.shape[:-2] + (-1,))], axis=-1)
 
 
@@ -61,16 +61,19 @@ def waypoint_features(state, params: EnvParams):
     span = jnp.maximum(hi - lo, 1e-6)
     goal = (params.q_fin - state.q) / area
     hover = channel.rate(0.0, params.H, params.P_n, params.B, params) * params.tau / (params.beta * params.M)
-    glob = jnp.concatenate([
-        state.q / area,
-        state.v / params.v_max,
-        state.a_prev / params.a_max,
-        jnp.stack([left / T]),
-        goal,
-        jnp.tanh(NEAR_GAIN * goal),
-        jnp.stack([(left - time_home(state.q, state.v, params.v_max, params)) / T,
-                   jnp.log2(params.B / B_REF), hover]),
-    ])
+    glob = jnp.concatenate(
+        [
+            state.q / area,
+            state.v / params.v_max,
+            state.a_prev / params.a_max,
+            jnp.stack([left / T]),
+            goal,
+            jnp.tanh(NEAR_GAIN * goal),
+            jnp.stack(
+                [(left - time_home(state.q, state.v, params.v_max, params)) / T, jnp.log2(params.B / B_REF), hover]
+            ),
+        ]
+    )
     order = device_order(state, params)
     pos = state.dev_pos[order]
     off = (pos - state.q) / area
@@ -78,18 +81,23 @@ def waypoint_features(state, params: EnvParams):
     def slack(p):
         d = p - state.q
         u = d / jnp.maximum(jnp.linalg.norm(d), 1e-6)
-        need = time_to_pass(state.q, state.v, p, SLACK_SPEED, params) + time_home(p, SLACK_SPEED * u, SLACK_SPEED, params)
+        need = time_to_pass(state.q, state.v, p, SLACK_SPEED, params) + time_home(
+            p, SLACK_SPEED * u, SLACK_SPEED, params
+        )
         return (left - need) / T
 
     phi = state.phi[order]
     top = params.C[state.dev_img[order], params.M]
-    dev = jnp.concatenate([
-        off,
-        jnp.tanh(NEAR_GAIN * off),
-        (state.m[order] / params.M)[:, None],
-        state.x[order][:, None].astype(jnp.float32),
-        ((phi - lo) / span)[:, None],
-        (jnp.maximum(top - phi, 0.0) / span)[:, None],
-        jax.vmap(slack)(pos)[:, None],
-    ], axis=-1)
+    dev = jnp.concatenate(
+        [
+            off,
+            jnp.tanh(NEAR_GAIN * off),
+            (state.m[order] / params.M)[:, None],
+            state.x[order][:, None].astype(jnp.float32),
+            ((phi - lo) / span)[:, None],
+            (jnp.maximum(top - phi, 0.0) / span)[:, None],
+            jax.vmap(slack)(pos)[:, None],
+        ],
+        axis=-1,
+    )
     return jnp.concatenate([glob, dev.reshape(-1)]).astype(jnp.float32)

@@ -30,8 +30,10 @@ def clear_run(folder) -> None:
     remove_stale_temps(folder, RUN_FILES)
     foreign = sorted(p.name for p in folder.iterdir() if p.name not in RUN_FILES)
     if foreign:
-        raise ValueError(f"{folder} holds files that are not a run's ({', '.join(foreign)}); "
-                         "refusing to overwrite it: choose another --out")
+        raise ValueError(
+            f"{folder} holds files that are not a run's ({', '.join(foreign)}); "
+            "refusing to overwrite it: choose another --out"
+        )
     for name in RUN_FILES:
         (folder / name).unlink(missing_ok=True)
 
@@ -58,14 +60,18 @@ def check_weights(run: dict, weights, where, seeds: int | None = None) -> None:
     net = q_network(params, config)
     want = jax.eval_shape(net.init, jax.random.key(0), jnp.zeros((input_size(params, config),), jnp.float32))
     lead = () if seeds is None else (seeds,)
-    shapes = lambda tree: {"/".join(str(getattr(k, "key", k)) for k in path): np.shape(x)
-                           for path, x in jax.tree_util.tree_flatten_with_path(tree)[0]}
+    shapes = lambda tree: {
+        "/".join(str(getattr(k, "key", k)) for k in path): np.shape(x)
+        for path, x in jax.tree_util.tree_flatten_with_path(tree)[0]
+    }
     got, want = shapes(weights), {k: lead + v for k, v in shapes(want).items()}
     if got != want:
         bad = [f"{k} {got.get(k, 'missing')} (expected {want[k]})" for k in want if got.get(k) != want[k]]
         bad += [f"{k} (not a layer of it)" for k in got if k not in want]
-        raise ValueError(f"{where}: its weights do not match its config (hidden {list(config.hidden)}, "
-                         f"{net.num_actions} actions): {', '.join(bad[:3])}")
+        raise ValueError(
+            f"{where}: its weights do not match its config (hidden {list(config.hidden)}, "
+            f"{net.num_actions} actions): {', '.join(bad[:3])}"
+        )
     if not all(np.issubdtype(np.asarray(w).dtype, np.floating) for w in jax.tree.leaves(weights)):
         raise ValueError(f"{where}: its weights are not float arrays")
     if not all(np.isfinite(np.asarray(w)).all() for w in jax.tree.leaves(weights)):
@@ -88,7 +94,9 @@ def load_run(folder):
     except Exception as e:  # noqa: BLE001 - msgpack raises any kind for a file that is not one
         raise ValueError(f"{folder / MODEL_FILE} is not a weights file ({type(e).__name__})") from None
     seeds = run.get("seeds") if isinstance(run, dict) else None
-    check_weights(run, nets, folder / MODEL_FILE, seeds if isinstance(seeds, int) and not isinstance(seeds, bool) else None)
+    check_weights(
+        run, nets, folder / MODEL_FILE, seeds if isinstance(seeds, int) and not isinstance(seeds, bool) else None
+    )
     return run, config, nets
 
 
@@ -116,8 +124,14 @@ def run_params(run: dict):
 
     source = run.get("curves")
     curves = synthetic_curves() if source == "synthetic" else load_curves(source) if source else None
-    return scenario_params(run["scenario"], curves, reward_mode=run["reward_mode"], B=run["bandwidth"],
-                           kappa_c=run["kappa_c"], r_g=run.get("r_g", 500.0))
+    return scenario_params(
+        run["scenario"],
+        curves,
+        reward_mode=run["reward_mode"],
+        B=run["bandwidth"],
+        kappa_c=run["kappa_c"],
+        r_g=run.get("r_g", 500.0),
+    )
 
 
 def shipped_folder() -> Path:

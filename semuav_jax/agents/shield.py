@@ -62,8 +62,11 @@ def shield(action, state, params: EnvParams, margin: float | None):
     ``margin`` None: no shield at all."""
     if margin is None:
         return action
-    return jnp.where(late(state, params, margin, home_speed(params)), home_action(state.q, state.v, params),
-                     airspace_action(action, state.q, state.v, params))
+    return jnp.where(
+        late(state, params, margin, home_speed(params)),
+        home_action(state.q, state.v, params),
+        airspace_action(action, state.q, state.v, params),
+    )
 
 
 def waypoint_shield(action, state, params: EnvParams, margin: float | None):

@@ -34,23 +34,39 @@ def parse_args(argv=None):
     p.add_argument("--agent", default=None, help="a finished train.py run folder to evaluate (no training)")
     p.add_argument("--out", default="results", help="output folder (default: %(default)s)")
     p.add_argument("--overwrite", action="store_true", help="replace the results in an existing --out")
-    p.add_argument("--layouts", type=int, default=None,
-                   help=f"test layouts per point (default: {FULL['layouts']}; --quick: {QUICK['layouts']})")
-    p.add_argument("--validation-layouts", type=int, default=None,
-                   help=f"layouts that choose v_b* (default: {FULL['validation_layouts']}; --quick: {QUICK['validation_layouts']})")
+    p.add_argument(
+        "--layouts",
+        type=int,
+        default=None,
+        help=f"test layouts per point (default: {FULL['layouts']}; --quick: {QUICK['layouts']})",
+    )
+    p.add_argument(
+        "--validation-layouts",
+        type=int,
+        default=None,
+        help=f"layouts that choose v_b* (default: {FULL['validation_layouts']}; --quick: {QUICK['validation_layouts']})",
+    )
     p.add_argument("--bandwidths", type=float, nargs="+", default=None, help=f"Hz (default: {FULL['bandwidths']})")
     p.add_argument("--velocities", type=float, nargs="+", default=None, help=f"m/s (default: {FULL['velocities']})")
     p.add_argument("--workers", type=int, default=2, help="processes for OR-Tools and the planner")
     p.add_argument("--curves", default=None, help="PSNR curves .npz (default: the shipped DeepJSCC curves)")
-    p.add_argument("--animate", metavar="GIF", default=None,
-                   help="only write an animated GIF: the agent (--agent, else the shipped one) and the references "
-                        "flying the paper layout at 25 kHz side by side")
+    p.add_argument(
+        "--animate",
+        metavar="GIF",
+        default=None,
+        help="only write an animated GIF: the agent (--agent, else the shipped one) and the references "
+        "flying the paper layout at 25 kHz side by side",
+    )
     distributed.add_options(p)
     a = p.parse_args(argv)
     base = QUICK if a.quick else FULL
     pick = lambda name: base[name] if getattr(a, name) is None else getattr(a, name)  # 0 is refused, not a default
-    a.grid = {"bandwidths": tuple(pick("bandwidths")), "velocities": tuple(pick("velocities")),
-              "layouts": pick("layouts"), "validation_layouts": pick("validation_layouts")}
+    a.grid = {
+        "bandwidths": tuple(pick("bandwidths")),
+        "velocities": tuple(pick("velocities")),
+        "layouts": pick("layouts"),
+        "validation_layouts": pick("validation_layouts"),
+    }
     if a.grid["layouts"] < 2 or a.grid["validation_layouts"] < 1 or a.workers < 1:
         raise UsageError("--layouts must be >= 2, --validation-layouts and --workers >= 1")
     for name, xs in (("bandwidths", a.grid["bandwidths"]), ("velocities", a.grid["velocities"])):
@@ -100,8 +116,12 @@ def agent_folder(args, out: Path) -> Path:
     folder = out / "agent"
     if not agree(finished(folder)):  # every process decides alike (a shared folder)
         resume = ["--resume"] if agree((folder / CKPT_FILE).is_file()) else []
-        cmd = ["--out", str(folder), "--eval-episodes", "0", *resume] + (["--curves", args.curves] if args.curves else [])
-        print(("resuming" if resume else "training") + f" the default agent in {folder} (python train.py {' '.join(cmd)})")
+        cmd = ["--out", str(folder), "--eval-episodes", "0", *resume] + (
+            ["--curves", args.curves] if args.curves else []
+        )
+        print(
+            ("resuming" if resume else "training") + f" the default agent in {folder} (python train.py {' '.join(cmd)})"
+        )
         if train.main(cmd) != 0:
             raise UsageError(f"training into {folder} failed")
         distributed.barrier("agent trained")  # process 0 wrote it: the others read it next
@@ -109,7 +129,9 @@ def agent_folder(args, out: Path) -> Path:
 
 
 def main(argv=None) -> int:
-    return interruptible(lambda a: distributed.guarded(_main, a), argv, "the same command continues at the step it stopped in")
+    return interruptible(
+        lambda a: distributed.guarded(_main, a), argv, "the same command continues at the step it stopped in"
+    )
 
 
 def _main(argv=None) -> int:
@@ -170,19 +192,33 @@ def _evaluate(args, results, curves, t0) -> int:
     train_s = time.time() - t0
     print(f"agent: {folder} ({jax.tree.leaves(nets)[0].shape[0]} seeds); JAX devices: {jax.device_count()}")
     network = q_network(params, config)
-    key = {"grid": args.grid, "agent": str(folder.resolve()), "weights_sha256": file_hash(folder / MODEL_FILE),
-           **provenance(params)}
+    key = {
+        "grid": args.grid,
+        "agent": str(folder.resolve()),
+        "weights_sha256": file_hash(folder / MODEL_FILE),
+        **provenance(params),
+    }
     with tqdm(total=fig2.stage_count(args.grid), desc="Fig. 2", unit="step", dynamic_ncols=True) as bar:
+
         def log(msg):
             bar.write(msg)
             bar.update(1)
+
         # each step is saved in OUT/stages: an interrupted run continues at the first step not done
         stages = fig2.Stages(results, key, log, note=bar.write)
         r = fig2.run(network, nets, config, params, fixed, args.grid, args.workers, stages=stages)
-    r.update(agent=str(folder), agent_command=run.get("command"), train_s=train_s, eval_s=time.time() - t0 - train_s,
-             devices=jax.device_count(), grid={k: list(v) if isinstance(v, tuple) else v for k, v in args.grid.items()},
-             **provenance(params))
-    r["paths"] = {k: {m: (v.tolist() if hasattr(v, "tolist") else v) for m, v in p.items()} for k, p in r["paths"].items()}
+    r.update(
+        agent=str(folder),
+        agent_command=run.get("command"),
+        train_s=train_s,
+        eval_s=time.time() - t0 - train_s,
+        devices=jax.device_count(),
+        grid={k: list(v) if isinstance(v, tuple) else v for k, v in args.grid.items()},
+        **provenance(params),
+    )
+    r["paths"] = {
+        k: {m: (v.tolist() if hasattr(v, "tolist") else v) for m, v in p.items()} for k, p in r["paths"].items()
+    }
     if not distributed.is_main():  # process 0 alone writes the results
         return 0
     results.write("fig2.json", json.dumps(r, indent=2).encode())
@@ -226,8 +262,12 @@ def _animate(args) -> int:
     tuned = None if args.curves else shipped_tuned_speeds(folder, PANEL_B)
     if tuned is None:
         print(f"tuning v_b* at {PANEL_B / 1e3:g} kHz on {args.grid['validation_layouts']} validation layouts")
-        t = tune(scenario_params("random", curves, **kw), (PANEL_B,), args.grid["validation_layouts"], workers=args.workers)
-        tuned = {n: t[n]["v_star"][0] for n in ("greedy", "tsp")} | {n: tuple(t[n]["knobs"][0]) for n in ("greedy-dwell", "tsp-dwell")}
+        t = tune(
+            scenario_params("random", curves, **kw), (PANEL_B,), args.grid["validation_layouts"], workers=args.workers
+        )
+        tuned = {n: t[n]["v_star"][0] for n in ("greedy", "tsp")} | {
+            n: tuple(t[n]["knobs"][0]) for n in ("greedy-dwell", "tsp-dwell")
+        }
     traces = paper_layout_traces(q_network(fixed, config), nets, config, fixed, tuned)
     animate(traces, fixed, args.animate, progress=True)
     print(f"wrote {args.animate} ({Path(args.animate).stat().st_size / 1e6:.2f} MB) in {time.time() - t0:.0f} s")

@@ -68,8 +68,10 @@ def _main(argv=None) -> int:
                 sweep.save_item(args.out, it, metrics)
         if args.item is not None:
             if main_process:
-                print(f"item {args.item} ({its[args.item]['hash']}) in {sweep.item_path(args.out, its[args.item])}"
-                      + (" (done before)" if not todo else f" in {time.time() - t0:.1f} s"))
+                print(
+                    f"item {args.item} ({its[args.item]['hash']}) in {sweep.item_path(args.out, its[args.item])}"
+                    + (" (done before)" if not todo else f" in {time.time() - t0:.1f} s")
+                )
             return 0
         if not main_process:  # process 0 alone saved the items: it merges them
             return 0

@@ -41,8 +41,19 @@ from semuav_jax.cli.train_folder import (
 )
 from semuav_jax.runfolder import RunFolder
 
-METRIC_COLUMNS = ("seed", "chunk", "env_steps", "epsilon", "episodes", "loss", "mean_psnr", "return", "arrived",
-                  "coverage", "shield_share")
+METRIC_COLUMNS = (
+    "seed",
+    "chunk",
+    "env_steps",
+    "epsilon",
+    "episodes",
+    "loss",
+    "mean_psnr",
+    "return",
+    "arrived",
+    "coverage",
+    "shield_share",
+)
 
 
 def _option_type(default):
@@ -65,6 +76,7 @@ def _boolean(text: str) -> bool:
 def _none_or(kind):
     def parse(text: str):
         return NONE if text.lower() == NONE else kind(text)
+
     parse.__name__ = kind.__name__
     return parse
 
@@ -74,38 +86,91 @@ def parse_args(argv=None):
 
     from semuav_jax.agents.ddqn import PRESETS, DDQNConfig
 
-    p = argparse.ArgumentParser(description="Train the BS's DDQN from scratch (docs/ddqn.md). Unset options come "
-                                "from --preset; on --resume, from the run folder.")
-    p.add_argument("--preset", choices=sorted(PRESETS), default="default",
-                   help="default: waypoint actions, one agent for every bandwidth; paper: the paper's configuration")
-    p.add_argument("--scenario", choices=("fixed", "random"), default=None,
-                   help=f"fixed paper layout or a new random layout per episode (default: {SCENARIO['scenario']})")
-    p.add_argument("--reward-mode", choices=("paper", "gain"), default=None,
-                   help=f"reward of MODEL.md section 4 (default: {SCENARIO['reward_mode']}; paper preset: paper)")
-    p.add_argument("--bandwidth", type=float, default=None,
-                   help=f"B in Hz when bandwidth_range is none, and for --eval-episodes of such an agent (default: {SCENARIO['bandwidth']:g})")
-    p.add_argument("--kappa-c", type=float, default=None,
-                   help=f"weight of the PSNR gain in the 'gain' reward (default: {SCENARIO['kappa_c']:g})")
-    p.add_argument("--r-g", type=float, default=None,
-                   help="arrival reward of eq. 4.4 (default: 0, since the shield guarantees arrival and a discounted "
-                        "bonus only pays for arriving early, docs/ddqn.md; paper preset: 500)")
+    p = argparse.ArgumentParser(
+        description="Train the BS's DDQN from scratch (docs/ddqn.md). Unset options come "
+        "from --preset; on --resume, from the run folder."
+    )
+    p.add_argument(
+        "--preset",
+        choices=sorted(PRESETS),
+        default="default",
+        help="default: waypoint actions, one agent for every bandwidth; paper: the paper's configuration",
+    )
+    p.add_argument(
+        "--scenario",
+        choices=("fixed", "random"),
+        default=None,
+        help=f"fixed paper layout or a new random layout per episode (default: {SCENARIO['scenario']})",
+    )
+    p.add_argument(
+        "--reward-mode",
+        choices=("paper", "gain"),
+        default=None,
+        help=f"reward of MODEL.md section 4 (default: {SCENARIO['reward_mode']}; paper preset: paper)",
+    )
+    p.add_argument(
+        "--bandwidth",
+        type=float,
+        default=None,
+        help=f"B in Hz when bandwidth_range is none, and for --eval-episodes of such an agent (default: {SCENARIO['bandwidth']:g})",
+    )
+    p.add_argument(
+        "--kappa-c",
+        type=float,
+        default=None,
+        help=f"weight of the PSNR gain in the 'gain' reward (default: {SCENARIO['kappa_c']:g})",
+    )
+    p.add_argument(
+        "--r-g",
+        type=float,
+        default=None,
+        help="arrival reward of eq. 4.4 (default: 0, since the shield guarantees arrival and a discounted "
+        "bonus only pays for arriving early, docs/ddqn.md; paper preset: 500)",
+    )
     d = DDQNConfig()
     for f in dataclasses.fields(DDQNConfig):
         default = getattr(d, f.name)
-        shown = "none" if default is None else " ".join(f"{x:g}" if isinstance(x, float) else str(x)
-                                                        for x in (default if isinstance(default, tuple) else (default,)))
-        p.add_argument("--" + f.name.replace("_", "-"), default=None, help=f"{f.metadata['help']} (default: {shown})",
-                       **_option_type(default))
+        shown = (
+            "none"
+            if default is None
+            else " ".join(
+                f"{x:g}" if isinstance(x, float) else str(x)
+                for x in (default if isinstance(default, tuple) else (default,))
+            )
+        )
+        p.add_argument(
+            "--" + f.name.replace("_", "-"),
+            default=None,
+            help=f"{f.metadata['help']} (default: {shown})",
+            **_option_type(default),
+        )
     for name, (default, text) in RUN_OPTIONS.items():
         p.add_argument("--" + name, type=type(default), default=None, help=f"{text} (default: {default})")
-    p.add_argument("--max-segments", type=int, default=None,
-                   help="stop after this many segments in this session (continue later with --resume)")
-    p.add_argument("--eval-episodes", type=int, default=1000,
-                   help="test layouts for the comparison with the tuned baselines and the planner (0: skip)")
-    p.add_argument("--validation-episodes", type=int, default=500,
-                   help="validation layouts that choose the baselines' tuned speed v_b* (default: %(default)s)")
+    p.add_argument(
+        "--max-segments",
+        type=int,
+        default=None,
+        help="stop after this many segments in this session (continue later with --resume)",
+    )
+    p.add_argument(
+        "--eval-episodes",
+        type=int,
+        default=1000,
+        help="test layouts for the comparison with the tuned baselines and the planner (0: skip)",
+    )
+    p.add_argument(
+        "--validation-episodes",
+        type=int,
+        default=500,
+        help="validation layouts that choose the baselines' tuned speed v_b* (default: %(default)s)",
+    )
     p.add_argument("--workers", type=int, default=2, help="processes for OR-Tools and the planner in the evaluation")
-    p.add_argument("--curves", type=str, default=None, help="PSNR curves .npz, or 'synthetic' for the stand-in test curves (default: the shipped DeepJSCC curves)")
+    p.add_argument(
+        "--curves",
+        type=str,
+        default=None,
+        help="PSNR curves .npz, or 'synthetic' for the stand-in test curves (default: the shipped DeepJSCC curves)",
+    )
     p.add_argument("--out", type=str, default=None, help="run folder (default: runs/ddqn_<preset>)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
@@ -119,7 +184,9 @@ def parse_args(argv=None):
         if getattr(args, name) is not None and getattr(args, name) < 1:
             raise UsageError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
     if args.eval_episodes < 0 or args.eval_episodes == 1:
-        raise UsageError(f"--eval-episodes must be 0 (no comparison) or >= 2 (its intervals need two), got {args.eval_episodes}")
+        raise UsageError(
+            f"--eval-episodes must be 0 (no comparison) or >= 2 (its intervals need two), got {args.eval_episodes}"
+        )
     return args
 
 
@@ -139,7 +206,14 @@ def run_config(args) -> dict:
     cfg = preset_config(args.preset, **given)
     scenario = {k: getattr(args, k) if getattr(args, k) is not None else preset.get(k, v) for k, v in SCENARIO.items()}
     run = {k: getattr(args, k) if getattr(args, k) is not None else v for k, (v, _) in RUN_OPTIONS.items()}
-    return {"preset": args.preset, **scenario, **run, "curves": args.curves, "command": args.command, "ddqn": cfg.to_dict()}
+    return {
+        "preset": args.preset,
+        **scenario,
+        **run,
+        "curves": args.curves,
+        "command": args.command,
+        "ddqn": cfg.to_dict(),
+    }
 
 
 def load_run_config(args) -> dict:
@@ -165,8 +239,11 @@ def plot_curves(rows, path: Path, reference: dict | None = None) -> None:
     for name, value in (reference or {}).items():
         axes[0].axhline(value, ls="--", color="gray")
         axes[0].annotate(name, (0, value), fontsize=8, color="gray")
-    axes[0].set(xlabel="environment steps", ylabel="mean PSNR of finished episodes (dB)",
-                title="training (ε-greedy, over the training bandwidths)")
+    axes[0].set(
+        xlabel="environment steps",
+        ylabel="mean PSNR of finished episodes (dB)",
+        title="training (ε-greedy, over the training bandwidths)",
+    )
     axes[1].set(xlabel="environment steps", ylabel="episode return")
     axes[0].legend(fontsize=8)
     save_figure(fig, path, dpi=110)
@@ -180,8 +257,12 @@ def segment_lengths(num_chunks: int, segments: int, done: int):
 
 
 def main(argv=None) -> int:
-    return interruptible(lambda a: distributed.guarded(_main, a), argv, "the run folder is consistent: continue with "
-                         "--resume (before its first checkpoint, --resume or the same command starts it again)")
+    return interruptible(
+        lambda a: distributed.guarded(_main, a),
+        argv,
+        "the run folder is consistent: continue with "
+        "--resume (before its first checkpoint, --resume or the same command starts it again)",
+    )
 
 
 def _main(argv=None) -> int:
@@ -240,11 +321,16 @@ def _train(args, cfg, params, config, folder) -> int:
         try:
             state = serialization.from_bytes(template, (out / CKPT_FILE).read_bytes())
             if jax.tree.structure(state) != jax.tree.structure(template) or any(
-                    np.shape(a) != b.shape for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(template))):
+                np.shape(a) != b.shape for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(template))
+            ):
                 raise ValueError("its arrays do not match config.json")
             rows = read_metrics(out, int(np.asarray(state.chunk)[0]))
         except Exception as e:  # noqa: BLE001 - flax raises any kind for a file that is not this checkpoint
-            text = e if isinstance(e, UsageError) else f"--resume: {out / CKPT_FILE} is unreadable or not this run's checkpoint ({e})"
+            text = (
+                e
+                if isinstance(e, UsageError)
+                else f"--resume: {out / CKPT_FILE} is unreadable or not this run's checkpoint ({e})"
+            )
             print(f"{Path(sys.argv[0]).name}: error: {text}", file=sys.stderr)
             return 2
         print(f"resuming {out} at chunk {int(np.asarray(state.chunk)[0])} / {config.num_chunks}")
@@ -260,17 +346,30 @@ def _train(args, cfg, params, config, folder) -> int:
             runs[n] = jax.jit(jax.vmap(lambda s, n=n: trainer.run(s, n)))
         state, metrics = runs[n](state)
         metrics = jax.tree.map(np.asarray, metrics)
-        if not np.isfinite(metrics["loss"]).all() or not all(np.isfinite(w).all() for w in jax.tree.leaves(state.params)):
+        if not np.isfinite(metrics["loss"]).all() or not all(
+            np.isfinite(w).all() for w in jax.tree.leaves(state.params)
+        ):
             bar.close()
             kept = f"keeps its checkpoint at chunk {done}" if (out / CKPT_FILE).is_file() else "has no checkpoint"
-            print(f"{Path(sys.argv[0]).name}: error: training diverged (non-finite loss or weights) in chunks "
-                  f"{done + 1}..{done + n}; {out} {kept} and no model: start again with other options (e.g. a smaller "
-                  "--lr) and --overwrite", file=sys.stderr)
+            print(
+                f"{Path(sys.argv[0]).name}: error: training diverged (non-finite loss or weights) in chunks "
+                f"{done + 1}..{done + n}; {out} {kept} and no model: start again with other options (e.g. a smaller "
+                "--lr) and --overwrite",
+                file=sys.stderr,
+            )
             return 2
         for s in range(cfg["seeds"]):
             for c in range(n):
-                rows.append({"seed": s, "chunk": done + c + 1, **{k: int(metrics[k][s, c]) if k in INT_COLUMNS
-                                                                 else float(metrics[k][s, c]) for k in METRIC_COLUMNS[2:]}})
+                rows.append(
+                    {
+                        "seed": s,
+                        "chunk": done + c + 1,
+                        **{
+                            k: int(metrics[k][s, c]) if k in INT_COLUMNS else float(metrics[k][s, c])
+                            for k in METRIC_COLUMNS[2:]
+                        },
+                    }
+                )
         done += n
         if not distributed.is_main():
             continue
@@ -290,15 +389,23 @@ def _train(args, cfg, params, config, folder) -> int:
     wall = time.time() - t0
     folder.write(MODEL_FILE, serialization.to_bytes(state.params))  # process 0 alone writes (a view elsewhere)
     distributed.barrier("weights written")  # the evaluation below and eval.py read them in every process
-    print(f"training: {config.num_chunks * config.steps_per_chunk * config.num_envs * cfg['seeds']:,} env steps "
-          f"in {wall:.0f} s (this session)")
+    print(
+        f"training: {config.num_chunks * config.steps_per_chunk * config.num_envs * cfg['seeds']:,} env steps "
+        f"in {wall:.0f} s (this session)"
+    )
 
     if args.eval_episodes:
         from semuav_jax.experiments.learned import evaluate_run, markdown
 
         folder.record(EVAL_FILE), folder.record(EVAL_MD)
-        report = evaluate_run(out, args.eval_episodes, args.validation_episodes, args.workers, log=tqdm.write,
-                              extra={"train_wall_s": wall})
+        report = evaluate_run(
+            out,
+            args.eval_episodes,
+            args.validation_episodes,
+            args.workers,
+            log=tqdm.write,
+            extra={"train_wall_s": wall},
+        )
         if not distributed.is_main():
             return 0
         print(markdown(report))

@@ -21,11 +21,14 @@ from semuav_jax.agents.runs import (
 from semuav_jax.runfolder import RunFolder
 
 SCENARIO = {"scenario": "random", "reward_mode": "gain", "bandwidth": 25e3, "kappa_c": 10.0, "r_g": 0.0}
-RUN_OPTIONS = {"seeds": (3, "independent agents trained in one program"), "seed": (0, "base random seed"),
-               "segments": (50, "host-level segments (progress + checkpoint each)")}
+RUN_OPTIONS = {
+    "seeds": (3, "independent agents trained in one program"),
+    "seed": (0, "base random seed"),
+    "segments": (50, "host-level segments (progress + checkpoint each)"),
+}
 INT_COLUMNS = ("seed", "chunk", "env_steps", "episodes")
 NONE = "none"  # an option set to none (e.g. --shield-margin none), unlike one not given (None)
-SEED_RANGE = 2 ** 32  # jax.random.PRNGKey aliases seeds modulo 2**32
+SEED_RANGE = 2**32  # jax.random.PRNGKey aliases seeds modulo 2**32
 
 
 class UsageError(Exception):
@@ -35,6 +38,7 @@ class UsageError(Exception):
 def check_run(cfg: dict, where: str) -> None:
     """UsageError (one line) unless the run description ``cfg`` (built from the options, or read from
     config.json at ``where``) holds values the command line would accept."""
+
     def bad(name, v, want):
         raise UsageError(f"{where}{': ' if where else ''}{name} must be {want}, got {v!r}")
 
@@ -92,8 +96,10 @@ def saved_config(args) -> dict:
     out = Path(args.out)
     p = out / CONFIG_FILE
     if not p.is_file():
-        raise UsageError(f"--resume: no {CONFIG_FILE} in {out}, nothing to resume"
-                         + ("; the same command without --resume starts it" if (out / ".semuav.json").is_file() else ""))
+        raise UsageError(
+            f"--resume: no {CONFIG_FILE} in {out}, nothing to resume"
+            + ("; the same command without --resume starts it" if (out / ".semuav.json").is_file() else "")
+        )
     try:
         saved = json.loads(p.read_text())
     except ValueError:
@@ -109,8 +115,10 @@ def saved_config(args) -> dict:
         marker = {}
     want = marker.get("config_sha256") if isinstance(marker, dict) else None
     if want and want != _config_hash(p.read_bytes()):
-        raise UsageError(f"--resume: {p} was edited after the run wrote it; its checkpoint was trained with the "
-                         "config it had then: restore it, or start a new run (--overwrite or another --out)")
+        raise UsageError(
+            f"--resume: {p} was edited after the run wrote it; its checkpoint was trained with the "
+            "config it had then: restore it, or start a new run (--overwrite or another --out)"
+        )
     clashes = resume_clashes(args, saved)
     if clashes:
         raise UsageError(f"--resume continues the run saved in {out}, whose config differs: {', '.join(clashes)}")
@@ -150,8 +158,9 @@ def read_metrics(out: Path, at: int) -> list[dict]:
             try:
                 row = {k: int(float(v)) if k in INT_COLUMNS else float(v) for k, v in r.items()}
             except (TypeError, ValueError) as e:
-                raise UsageError(f"--resume: {p} line {i} does not parse ({e}); it is rebuilt only by a new run "
-                                 "(--overwrite)") from None
+                raise UsageError(
+                    f"--resume: {p} line {i} does not parse ({e}); it is rebuilt only by a new run (--overwrite)"
+                ) from None
             if row["chunk"] <= at:
                 rows.append(row)
     return rows

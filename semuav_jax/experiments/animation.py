@@ -21,8 +21,13 @@ from semuav_jax.io import atomic_write
 from semuav_jax.params import EnvParams
 from semuav_jax.render import draw, figure_rgb, view_limits
 
-REFERENCES = {"greedy v_b*": "greedy", "tsp v_b*": "TSP", "tsp-dwell": "TSP-dwell", "planner": "open-loop planner",
-              "exact planner": "exact planner"}  # traced_runs' names (TSP-dwell when its knobs are given)
+REFERENCES = {
+    "greedy v_b*": "greedy",
+    "tsp v_b*": "TSP",
+    "tsp-dwell": "TSP-dwell",
+    "planner": "open-loop planner",
+    "exact planner": "exact planner",
+}  # traced_runs' names (TSP-dwell when its knobs are given)
 
 
 def episode_path(trace: dict, params: EnvParams) -> dict:
@@ -37,8 +42,18 @@ def episode_path(trace: dict, params: EnvParams) -> dict:
     return out
 
 
-def animate(traces: dict[str, dict], params: EnvParams, path, fps: int = 8, stride: int = 2, cols: int = 2,
-            panel=(4.8, 3.1), dpi: int = 80, hold_s: float = 2.0, progress: bool = False) -> Path:
+def animate(
+    traces: dict[str, dict],
+    params: EnvParams,
+    path,
+    fps: int = 8,
+    stride: int = 2,
+    cols: int = 2,
+    panel=(4.8, 3.1),
+    dpi: int = 80,
+    hold_s: float = 2.0,
+    progress: bool = False,
+) -> Path:
     """Write an animated GIF of ``traces`` ({panel title: one episode's trace with q, m, x, phi and
     done per slot}) on the fixed layout of ``params``: every ``stride``-th slot, ``fps`` frames a
     second, the last frame held ``hold_s`` seconds; an episode that ended stays on its last slot.
@@ -62,17 +77,22 @@ def animate(traces: dict[str, dict], params: EnvParams, path, fps: int = 8, stri
             psnr = float(np.mean(p["phi"][s - 1])) if s > 0 else phi0
             done = " (ended)" if s == len(p["q"]) - 1 else ""
             draw(ax, params, params.device_pos, p["m"][s], p["x"][s], p["q"][: s + 1], s, psnr, name + done, limits)
-        for ax in axes[len(paths):]:
+        for ax in axes[len(paths) :]:
             ax.set_axis_off()
-        fig.suptitle(f"paper layout, B = {float(params.B) / 1e3:g} kHz; device colour: share of its image "
-                     "received (dark none, yellow all); orange: transmitting", fontsize=8)
-        fig.subplots_adjust(left=0.06, right=0.99, bottom=0.05, top=1 - 0.8 / fig.get_figheight(), wspace=0.15,
-                            hspace=0.35)  # room for the titles (equal-aspect axes defeat tight_layout)
+        fig.suptitle(
+            f"paper layout, B = {float(params.B) / 1e3:g} kHz; device colour: share of its image "
+            "received (dark none, yellow all); orange: transmitting",
+            fontsize=8,
+        )
+        fig.subplots_adjust(
+            left=0.06, right=0.99, bottom=0.05, top=1 - 0.8 / fig.get_figheight(), wspace=0.15, hspace=0.35
+        )  # room for the titles (equal-aspect axes defeat tight_layout)
         frames.append(Image.fromarray(figure_rgb(fig)).quantize(colors=64, method=Image.Quantize.MEDIANCUT))
     buf = io.BytesIO()
     durations = [round(1000 / fps)] * (len(frames) - 1) + [round(1000 * max(hold_s, 1 / fps))]
-    frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], duration=durations, loop=0,
-                   optimize=True)
+    frames[0].save(
+        buf, format="GIF", save_all=True, append_images=frames[1:], duration=durations, loop=0, optimize=True
+    )
     return atomic_write(path, buf.getvalue())
 
 
@@ -94,7 +114,8 @@ def shipped_tuned_speeds(folder, B: float) -> dict | None:
         return None
     j = bandwidths.index(B)
     return {n: r["tuning"][n]["v_star"][j] for n in ("greedy", "tsp")} | {
-        n: tuple(r["tuning"][n]["knobs"][j]) for n in ("greedy-dwell", "tsp-dwell") if n in r["tuning"]}
+        n: tuple(r["tuning"][n]["knobs"][j]) for n in ("greedy-dwell", "tsp-dwell") if n in r["tuning"]
+    }
 
 
 def paper_layout_traces(network, nets, config, fixed: EnvParams, tuned: dict) -> dict[str, dict]:
@@ -104,8 +125,10 @@ def paper_layout_traces(network, nets, config, fixed: EnvParams, tuned: dict) ->
     from semuav_jax.experiments.fig2 import traced_runs
     from semuav_jax.keys import TEST_SEED, episode_keys
 
-    runs = traced_runs(network, jax.tree.map(lambda x: x[:1], nets), config, episode_keys(TEST_SEED, 1), fixed,
-                       tuned, workers=1)
-    labels = {"agent seed 0": "DDQN (ours)"} | {k: v + (f", {tuned[k.split()[0]]:g} m/s" if "v_b*" in k else "")
-                                                   for k, v in REFERENCES.items() if k in runs}
+    runs = traced_runs(
+        network, jax.tree.map(lambda x: x[:1], nets), config, episode_keys(TEST_SEED, 1), fixed, tuned, workers=1
+    )
+    labels = {"agent seed 0": "DDQN (ours)"} | {
+        k: v + (f", {tuned[k.split()[0]]:g} m/s" if "v_b*" in k else "") for k, v in REFERENCES.items() if k in runs
+    }
     return {labels[k]: jax.tree.map(lambda x: np.asarray(x)[0], runs[k][1]) for k in labels}

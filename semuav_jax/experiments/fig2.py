@@ -35,8 +35,12 @@ BANDWIDTHS = (5e3, 10e3, 15e3, 20e3, 25e3, 30e3, 35e3, 40e3)
 VELOCITIES = (4.0, 6.0, DEFAULT_V_B, 11.0, 14.0, 17.0, 20.0, 24.0)
 PANEL_B = 25e3
 FULL = {"bandwidths": BANDWIDTHS, "velocities": VELOCITIES, "layouts": 1000, "validation_layouts": 500}
-QUICK = {"bandwidths": (5e3, 20e3, 25e3, 40e3), "velocities": (4.0, DEFAULT_V_B, 16.0, 24.0), "layouts": 300,
-         "validation_layouts": 100}
+QUICK = {
+    "bandwidths": (5e3, 20e3, 25e3, 40e3),
+    "velocities": (4.0, DEFAULT_V_B, 16.0, 24.0),
+    "layouts": 300,
+    "validation_layouts": 100,
+}
 
 
 def behaviour(trace: dict, params: EnvParams) -> dict:
@@ -68,8 +72,17 @@ def summarize(per_episode: dict) -> dict:
     return {k: mean_ci(v) for k, v in per_episode.items()}
 
 
-def traced_runs(network, nets, config: DDQNConfig, keys, params: EnvParams, tuned_speeds: dict, workers: int = 2,
-                rank=None, plan=None):
+def traced_runs(
+    network,
+    nets,
+    config: DDQNConfig,
+    keys,
+    params: EnvParams,
+    tuned_speeds: dict,
+    workers: int = 2,
+    rank=None,
+    plan=None,
+):
     """Traced rollouts at ``params.B``: each agent seed, greedy and TSP at 8.9 m/s and at v_b*
     (``tuned_speeds``: name -> v_b*, and the dwell rules' name -> (v_c, k*, margin)), the dwell rules,
     the planner and the exact planner. ``rank`` (TSP ranks of ``keys``) and ``plan`` (the planner's
@@ -78,10 +91,13 @@ def traced_runs(network, nets, config: DDQNConfig, keys, params: EnvParams, tune
     runs = {}
     for s in range(jax.tree.leaves(nets)[0].shape[0]):
         net = jax.tree.map(lambda x: x[s], nets)
-        runs[f"agent seed {s}"] = rollout(greedy_policy(network, config), keys, params, agent_state(net), trace=True,
-                                          state_axes=None)
-    ranks = {"greedy": np.broadcast_to(np.arange(params.N, dtype=np.int32), (len(keys), params.N)),
-             "tsp": tsp_ranks(keys, params, workers=workers) if rank is None else rank}
+        runs[f"agent seed {s}"] = rollout(
+            greedy_policy(network, config), keys, params, agent_state(net), trace=True, state_axes=None
+        )
+    ranks = {
+        "greedy": np.broadcast_to(np.arange(params.N, dtype=np.int32), (len(keys), params.N)),
+        "tsp": tsp_ranks(keys, params, workers=workers) if rank is None else rank,
+    }
     for name in ("greedy", "tsp"):
         for label, v in ((f"{name} {DEFAULT_V_B:g}", DEFAULT_V_B), (f"{name} v_b*", tuned_speeds[name])):
             states = jax.vmap(init_state, (None, 0))(jnp.float32(v), jnp.asarray(ranks[name]))
@@ -117,8 +133,10 @@ def check_bandwidths(bandwidths) -> None:
         by_name.setdefault(khz(b), []).append(b)
     for name, bs in by_name.items():
         if len(bs) > 1:
-            raise ValueError(f"--bandwidths {' and '.join(f'{b!r}' for b in bs)} would both be named {name} kHz: "
-                             "give bandwidths that differ in their first 6 digits")
+            raise ValueError(
+                f"--bandwidths {' and '.join(f'{b!r}' for b in bs)} would both be named {name} kHz: "
+                "give bandwidths that differ in their first 6 digits"
+            )
 
 
 def stage_count(grid: dict) -> int:
@@ -137,8 +155,17 @@ def shared_plans(keys, params: EnvParams, workers: int = 2) -> PlanState:
     return PlanState(**{k: jnp.asarray(v) for k, v in plan.items()})
 
 
-def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, grid: dict, workers: int = 2,
-        log=print, stages: Stages | None = None) -> dict:
+def run(
+    network,
+    nets,
+    config: DDQNConfig,
+    params: EnvParams,
+    fixed: EnvParams,
+    grid: dict,
+    workers: int = 2,
+    log=print,
+    stages: Stages | None = None,
+) -> dict:
     """Every number and path of Fig. 2 (JSON-ready except the paths' arrays). ``stages`` saves each
     step so that an interrupted run resumes (default: nothing saved)."""
     check_bandwidths(grid["bandwidths"])
@@ -147,19 +174,39 @@ def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, 
     bandwidths, velocities = tuple(grid["bandwidths"]), tuple(grid["velocities"])
     sweep_B = tuple(sorted(set(bandwidths) | {PANEL_B}))
     keys = episode_keys(TEST_SEED, grid["layouts"])
-    tuned = stage("v_b* on validation layouts", lambda: tune(params, sweep_B, grid["validation_layouts"], workers=workers),
-                  describe=lambda t: ": " + ", ".join(f"{n} {t[n]['v_star']}" for n in ("greedy", "tsp")))
+    tuned = stage(
+        "v_b* on validation layouts",
+        lambda: tune(params, sweep_B, grid["validation_layouts"], workers=workers),
+        describe=lambda t: ": " + ", ".join(f"{n} {t[n]['v_star']}" for n in ("greedy", "tsp")),
+    )
     # the TSP order does not depend on B: solved once
     rank = stage("TSP tours", lambda: np.asarray(tsp_ranks(keys, params, workers=workers)))
-    plans = [stage(f"planner at {khz(b)} kHz", lambda b=b: shared_plans(keys, params.replace(B=b), workers),
-                   save=_plan_dict, load=lambda d: PlanState(**{k: jnp.asarray(v) for k, v in d.items()}))
-             for b in sweep_B]
-    refs = stage("references flown (greedy, TSP at 8.9 m/s and v_b*; greedy-dwell, TSP-dwell; both planners)",
-                 lambda: flights(params, keys, tuned, sweep_B, workers, rank=rank, plans=plans))
+    plans = [
+        stage(
+            f"planner at {khz(b)} kHz",
+            lambda b=b: shared_plans(keys, params.replace(B=b), workers),
+            save=_plan_dict,
+            load=lambda d: PlanState(**{k: jnp.asarray(v) for k, v in d.items()}),
+        )
+        for b in sweep_B
+    ]
+    refs = stage(
+        "references flown (greedy, TSP at 8.9 m/s and v_b*; greedy-dwell, TSP-dwell; both planners)",
+        lambda: flights(params, keys, tuned, sweep_B, workers, rank=rank, plans=plans),
+    )
     agent = stage("agent evaluated", lambda: seed_metrics(network, nets, config, keys, params, sweep_B))
-    out = {"layouts": len(keys), "test_seed": TEST_SEED, "validation_seed": VALIDATION_SEED,
-           "validation_layouts": grid["validation_layouts"], "tuning": tuned, "bandwidths": list(sweep_B),
-           "velocities": list(velocities), "seeds": int(agent["mean_psnr"].shape[0]), "panel_a": [], "panel_b": {}}
+    out = {
+        "layouts": len(keys),
+        "test_seed": TEST_SEED,
+        "validation_seed": VALIDATION_SEED,
+        "validation_layouts": grid["validation_layouts"],
+        "tuning": tuned,
+        "bandwidths": list(sweep_B),
+        "velocities": list(velocities),
+        "seeds": int(agent["mean_psnr"].shape[0]),
+        "panel_a": [],
+        "panel_b": {},
+    }
     for j, b in enumerate(sweep_B):
         row = {"B": b, "agent_seeds": [float(x) for x in agent["mean_psnr"][:, j].mean(-1)]}
         row["agent"] = mean_ci(row["agent_seeds"])
@@ -167,17 +214,23 @@ def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, 
         row["agent_arrived"] = float(agent["arrived"][:, j].mean())
         row["agent_shield_share"] = float(agent["shield_share"][:, j].mean())
         for name, m in refs[j].items():
-            row[name] = {"v_b": m["v_b"], "mean_psnr": mean_ci(m["mean_psnr"]), "coverage": float(np.mean(m["coverage"])),
-                         "arrived": float(np.mean(m["arrived"]))}
-            row[f"agent minus {name}"] = mean_ci([mean_ci(agent["mean_psnr"][s, j] - m["mean_psnr"])[0]
-                                                  for s in range(out["seeds"])])
+            row[name] = {
+                "v_b": m["v_b"],
+                "mean_psnr": mean_ci(m["mean_psnr"]),
+                "coverage": float(np.mean(m["coverage"])),
+                "arrived": float(np.mean(m["arrived"])),
+            }
+            row[f"agent minus {name}"] = mean_ci(
+                [mean_ci(agent["mean_psnr"][s, j] - m["mean_psnr"])[0] for s in range(out["seeds"])]
+            )
         out["panel_a"].append(row)
     out["panel_b"] = stage("panel (b) swept", lambda: panel_b(keys, params, velocities, rank))
     out["behaviour"] = {}
     for b in sorted({min(sweep_B), PANEL_B}):
         ib = sweep_B.index(b)
         tuned_at_b = {n: tuned[n]["v_star"][ib] for n in ("greedy", "tsp")} | {
-            n: tuned[n]["knobs"][ib] for n in DWELL_POLICIES}
+            n: tuned[n]["knobs"][ib] for n in DWELL_POLICIES
+        }
         at_b = params.replace(B=b)
 
         def measure(at_b=at_b, tuned_at_b=tuned_at_b, ib=ib):
@@ -188,8 +241,11 @@ def run(network, nets, config: DDQNConfig, params: EnvParams, fixed: EnvParams, 
     pf = fixed.replace(B=PANEL_B)
     one = episode_keys(TEST_SEED, 1)
     paths = traced_runs(network, jax.tree.map(lambda x: x[:1], nets), config, one, pf, tuned_at_b, workers=1)
-    out["paths"] = {name.replace(" seed 0", ""): path(tr, m, 0, pf) for name, (m, tr) in paths.items()
-                    if not name.endswith(f"{DEFAULT_V_B:g}")}
+    out["paths"] = {
+        name.replace(" seed 0", ""): path(tr, m, 0, pf)
+        for name, (m, tr) in paths.items()
+        if not name.endswith(f"{DEFAULT_V_B:g}")
+    }
     log("paths on the paper layout")
     return out
 
@@ -207,9 +263,11 @@ def panel_b(keys, params: EnvParams, velocities, rank) -> dict:
             "arrived": [float(x.mean()) for x in per("arrived")],
             "coverage": [float(x.mean()) for x in per("coverage")],
             # mean share of M received by a covered device
-            "symbols_per_covered": [float((f * pb.N).sum() / max(c.sum(), 1)) for f, c in
-                                    zip(per("symbol_fraction"), per("coverage"))],
-            "episodes": len(keys)}
+            "symbols_per_covered": [
+                float((f * pb.N).sum() / max(c.sum(), 1)) for f, c in zip(per("symbol_fraction"), per("coverage"))
+            ],
+            "episodes": len(keys),
+        }
     return out
 
 
@@ -217,31 +275,58 @@ def markdown(r: dict) -> str:
     """The tables of docs/RESULTS.md: panel (a) with the agent's margins, panel (b), and the behaviour at 25 kHz."""
     refs = ("greedy 8.9", "tsp 8.9", "greedy v_b*", "tsp v_b*", "greedy-dwell", "tsp-dwell", "planner", "exact planner")
     margins = ("tsp v_b*", "tsp-dwell", "planner", "exact planner")
-    lines = [f"{r['layouts']} test layouts (seed {r['test_seed']}); DDQN: mean of {r['seeds']} seeds ± t interval "
-             f"across seeds; references ± 95 % interval over layouts; v_b* from {r['validation_layouts']} validation "
-             f"layouts (seed {r['validation_seed']}).", "",
-             "| B (kHz) | DDQN (dB) | " + " | ".join(refs) + " | " + " | ".join(f"DDQN − {n}" for n in margins) + " |",
-             "|---" * (2 + len(refs) + len(margins)) + "|"]
+    lines = [
+        f"{r['layouts']} test layouts (seed {r['test_seed']}); DDQN: mean of {r['seeds']} seeds ± t interval "
+        f"across seeds; references ± 95 % interval over layouts; v_b* from {r['validation_layouts']} validation "
+        f"layouts (seed {r['validation_seed']}).",
+        "",
+        "| B (kHz) | DDQN (dB) | " + " | ".join(refs) + " | " + " | ".join(f"DDQN − {n}" for n in margins) + " |",
+        "|---" * (2 + len(refs) + len(margins)) + "|",
+    ]
     for row in r["panel_a"]:
         cells = [f"{row[n]['mean_psnr'][0]:.2f}" + (f" ({row[n]['v_b']:g} m/s)" if "v_b*" in n else "") for n in refs]
         diffs = [f"{row[f'agent minus {n}'][0]:+.2f} {pm(row[f'agent minus {n}'][1])}" for n in margins]
-        lines.append(f"| {row['B'] / 1e3:g} | {row['agent'][0]:.2f} {pm(row['agent'][1])} | " + " | ".join(cells + diffs) + " |")
-    lines += ["", "Arrival: " + ", ".join(f"{row['B'] / 1e3:g} kHz DDQN {100 * row['agent_arrived']:.1f} % "
-                                         f"(shield {100 * row['agent_shield_share']:.1f} % of slots)" for row in r["panel_a"]), "",
-              "| v_b (m/s), B = 25 kHz | " + " | ".join(f"{v:g}" for v in r["velocities"]) + " |",
-              "|---" * (1 + len(r["velocities"])) + "|"]
+        lines.append(
+            f"| {row['B'] / 1e3:g} | {row['agent'][0]:.2f} {pm(row['agent'][1])} | " + " | ".join(cells + diffs) + " |"
+        )
+    lines += [
+        "",
+        "Arrival: "
+        + ", ".join(
+            f"{row['B'] / 1e3:g} kHz DDQN {100 * row['agent_arrived']:.1f} % "
+            f"(shield {100 * row['agent_shield_share']:.1f} % of slots)"
+            for row in r["panel_a"]
+        ),
+        "",
+        "| v_b (m/s), B = 25 kHz | " + " | ".join(f"{v:g}" for v in r["velocities"]) + " |",
+        "|---" * (1 + len(r["velocities"])) + "|",
+    ]
     for name, p in r["panel_b"].items():
         lines.append(f"| {name} PSNR (dB) | " + " | ".join(f"{m:.2f}" for m, _ in p["mean_psnr"]) + " |")
         lines.append(f"| {name} arrival | " + " | ".join(f"{100 * a:.1f} %" for a in p["arrived"]) + " |")
         lines.append(f"| {name} coverage | " + " | ".join(f"{c:.2f}" for c in p["coverage"]) + " |")
-        lines.append(f"| {name} symbols per covered device (share of M) | "
-                     + " | ".join(f"{c:.2f}" for c in p["symbols_per_covered"]) + " |")
-    keys = ("speed_transmitting", "speed_otherwise", "dwell_per_served_s", "symbols_per_served", "coverage", "mission_time_s")
+        lines.append(
+            f"| {name} symbols per covered device (share of M) | "
+            + " | ".join(f"{c:.2f}" for c in p["symbols_per_covered"])
+            + " |"
+        )
+    keys = (
+        "speed_transmitting",
+        "speed_otherwise",
+        "dwell_per_served_s",
+        "symbols_per_served",
+        "coverage",
+        "mission_time_s",
+    )
     for where, rows in r["behaviour"].items():
-        lines += ["", f"Behaviour at B = {where} (means over the test layouts):", "",
-                  "| policy | speed while a device transmits (m/s) | speed otherwise (m/s) | seconds in range per "
-                  "served device | symbols per served device (share of M) | devices covered | mission time (s) |",
-                  "|---" * 7 + "|"]
+        lines += [
+            "",
+            f"Behaviour at B = {where} (means over the test layouts):",
+            "",
+            "| policy | speed while a device transmits (m/s) | speed otherwise (m/s) | seconds in range per "
+            "served device | symbols per served device (share of M) | devices covered | mission time (s) |",
+            "|---" * 7 + "|",
+        ]
         for name, b in rows.items():
             lines.append(f"| {name} | " + " | ".join(f"{b[k][0]:.2f}" for k in keys) + " |")
     return "\n".join(lines)

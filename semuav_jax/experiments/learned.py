@@ -22,7 +22,12 @@ from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams
 from semuav_jax.stats import mean_ci, pm, wilson_interval
 
-REFERENCES = ("greedy v_b*", "tsp v_b*", "greedy-dwell", "tsp-dwell")  # the fixed rules, tuned: margins that must be positive
+REFERENCES = (
+    "greedy v_b*",
+    "tsp v_b*",
+    "greedy-dwell",
+    "tsp-dwell",
+)  # the fixed rules, tuned: margins that must be positive
 MARGINS = (*REFERENCES, "planner", "exact planner")  # every reference the agent is compared with, paired
 
 
@@ -30,8 +35,18 @@ def _header(names) -> str:
     return " | ".join(f"− {n.replace('tsp', 'TSP')}" for n in names)
 
 
-def compare(network, nets, config: DDQNConfig, params: EnvParams, bandwidths=BANDWIDTHS, episodes: int = 1000,
-            validation_episodes: int = 500, workers: int = 2, ablate_shield: bool = True, log=print) -> dict:
+def compare(
+    network,
+    nets,
+    config: DDQNConfig,
+    params: EnvParams,
+    bandwidths=BANDWIDTHS,
+    episodes: int = 1000,
+    validation_episodes: int = 500,
+    workers: int = 2,
+    ablate_shield: bool = True,
+    log=print,
+) -> dict:
     """Every number of the table of docs/ddqn.md (JSON-ready) for the seeds ``nets`` of one agent."""
     tuned = tune(params, bandwidths, validation_episodes, workers=workers)
     log("v_b* on validation layouts: " + ", ".join(f"{n} {tuned[n]['v_star']}" for n in ("greedy", "tsp")))
@@ -46,9 +61,14 @@ def compare(network, nets, config: DDQNConfig, params: EnvParams, bandwidths=BAN
     rows = []
     for j, (b, ref) in enumerate(zip(bandwidths, refs)):
         agent = [{k: v[s, j] for k, v in per_seed.items()} for s in range(seeds)]
-        row = {"B": float(b), "references": {k: {"v_b": m["v_b"], **({"knobs": m["knobs"]} if "knobs" in m else {}),
-                                              **summary(m)} for k, m in ref.items()},
-               "seeds": []}
+        row = {
+            "B": float(b),
+            "references": {
+                k: {"v_b": m["v_b"], **({"knobs": m["knobs"]} if "knobs" in m else {}), **summary(m)}
+                for k, m in ref.items()
+            },
+            "seeds": [],
+        }
         for m in agent:
             s = {**summary(m), "shield_share": float(np.mean(m["shield_share"]))}
             for name in MARGINS:
@@ -68,11 +88,19 @@ def compare(network, nets, config: DDQNConfig, params: EnvParams, bandwidths=BAN
         row["agent"]["shield_share"] = float(np.mean([s["shield_share"] for s in row["seeds"]]))
         rows.append(row)
         a = row["agent"]
-        log(f"B = {b / 1e3:g} kHz: agent {a['mean_psnr'][0]:.2f} {pm(a['mean_psnr'][1])} dB over "
+        log(
+            f"B = {b / 1e3:g} kHz: agent {a['mean_psnr'][0]:.2f} {pm(a['mean_psnr'][1])} dB over "
             f"{len(means)} seeds ({', '.join(f'{x:.2f}' for x in means)}); "
-            + ", ".join(f"{n} {a['minus ' + n][0]:+.2f} {pm(a['minus ' + n][1])}" for n in MARGINS))
-    return {"episodes": episodes, "test_seed": TEST_SEED, "validation_seed": VALIDATION_SEED,
-            "validation_episodes": validation_episodes, "tuning": tuned, "rows": rows}
+            + ", ".join(f"{n} {a['minus ' + n][0]:+.2f} {pm(a['minus ' + n][1])}" for n in MARGINS)
+        )
+    return {
+        "episodes": episodes,
+        "test_seed": TEST_SEED,
+        "validation_seed": VALIDATION_SEED,
+        "validation_episodes": validation_episodes,
+        "tuning": tuned,
+        "rows": rows,
+    }
 
 
 def markdown(r: dict) -> str:
@@ -87,29 +115,47 @@ def markdown(r: dict) -> str:
     for row in r["rows"]:
         a = row["agent"]
         cells = [f"{a[f'minus {n}'][0]:+.2f} {pm(a[f'minus {n}'][1])}" for n in MARGINS]
-        lines.append(f"| {row['B'] / 1e3:g} | {a['mean_psnr'][0]:.2f} {pm(a['mean_psnr'][1])} | " + " | ".join(cells)
-                     + f" | {100 * a['arrived']:.1f} % | {100 * a['shield_share']:.1f} % |")
-    lines += ["", "Across seeds: mean of the seeds' means ± the t interval (95 %) over seeds.", "",
-              f"| B (kHz) | seed | mean PSNR (dB) | {_header(MARGINS)} (paired 95 % CIs) | arrival "
-              "| shield share | arrival without shield |",
-              "|---" * (6 + len(MARGINS)) + "|"]
+        lines.append(
+            f"| {row['B'] / 1e3:g} | {a['mean_psnr'][0]:.2f} {pm(a['mean_psnr'][1])} | "
+            + " | ".join(cells)
+            + f" | {100 * a['arrived']:.1f} % | {100 * a['shield_share']:.1f} % |"
+        )
+    lines += [
+        "",
+        "Across seeds: mean of the seeds' means ± the t interval (95 %) over seeds.",
+        "",
+        f"| B (kHz) | seed | mean PSNR (dB) | {_header(MARGINS)} (paired 95 % CIs) | arrival "
+        "| shield share | arrival without shield |",
+        "|---" * (6 + len(MARGINS)) + "|",
+    ]
     for row in r["rows"]:
         for i, s in enumerate(row["seeds"]):
             cells = [f"{s[f'minus {n}'][0]:+.2f} ± {s[f'minus {n}'][1]:.2f}" for n in MARGINS]
             no = s.get("arrived_without_shield")
-            lines.append(f"| {row['B'] / 1e3:g} | {i} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | " + " | ".join(cells)
-                         + f" | {100 * s['arrived']:.1f} % | {100 * s['shield_share']:.1f} % | "
-                         + ("" if no is None else f"{100 * no:.1f} %") + " |")
-    lines += ["", "| B (kHz) | reference | setting (m/s) | mean PSNR (dB) | coverage | arrival |", "|---|---|---|---|---|---|"]
+            lines.append(
+                f"| {row['B'] / 1e3:g} | {i} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | "
+                + " | ".join(cells)
+                + f" | {100 * s['arrived']:.1f} % | {100 * s['shield_share']:.1f} % | "
+                + ("" if no is None else f"{100 * no:.1f} %")
+                + " |"
+            )
+    lines += [
+        "",
+        "| B (kHz) | reference | setting (m/s) | mean PSNR (dB) | coverage | arrival |",
+        "|---|---|---|---|---|---|",
+    ]
     for row in r["rows"]:
         for name, s in row["references"].items():
-            lines.append(f"| {row['B'] / 1e3:g} | {name} | {setting(s)} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | "
-                         f"{s['coverage']:.2f} | {100 * s['arrived']:.1f} % |")
+            lines.append(
+                f"| {row['B'] / 1e3:g} | {name} | {setting(s)} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | "
+                f"{s['coverage']:.2f} | {100 * s['arrived']:.1f} % |"
+            )
     return "\n".join(lines)
 
 
-def evaluate_run(folder, episodes: int = 1000, validation_episodes: int = 500, workers: int = 2, log=print,
-                 extra: dict | None = None) -> dict:
+def evaluate_run(
+    folder, episodes: int = 1000, validation_episodes: int = 500, workers: int = 2, log=print, extra: dict | None = None
+) -> dict:
     """:func:`compare` for the seeds of a finished ``train.py`` run folder; writes its eval.json and
     eval.md (the folder claimed and locked meanwhile, ``semuav_jax.runfolder``)."""
     from semuav_jax.agents.runs import RUN_FILES, load_run
@@ -149,8 +195,10 @@ def validation_table(folders, episodes: int = 500, bandwidths=(5e3, 25e3, 40e3))
     from semuav_jax.agents.runs import load_run, run_params
 
     keys = episode_keys(VALIDATION_SEED, episodes)
-    lines = ["| run | seed | " + " | ".join(f"{b / 1e3:g} kHz" for b in bandwidths) + " |",
-             "|---|---|" + "---|" * len(bandwidths)]
+    lines = [
+        "| run | seed | " + " | ".join(f"{b / 1e3:g} kHz" for b in bandwidths) + " |",
+        "|---|---|" + "---|" * len(bandwidths),
+    ]
     for folder in folders:
         run, config, nets = load_run(folder)
         params = run_params(run)
@@ -169,11 +217,16 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description="Compare a train.py run's seeds with the tuned baselines and the planner.")
     ap.add_argument("run", nargs="+", help="a finished train.py run folder (several with --validation)")
     ap.add_argument("--episodes", type=int, default=1000, help="test layouts (default: %(default)s)")
-    ap.add_argument("--validation-episodes", type=int, default=500, help="layouts that choose v_b* (default: %(default)s)")
+    ap.add_argument(
+        "--validation-episodes", type=int, default=500, help="layouts that choose v_b* (default: %(default)s)"
+    )
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--validation", action="store_true",
-                    help="only the agents, on --validation-episodes validation layouts at 5/25/40 kHz "
-                         "(for choosing settings; writes nothing)")
+    ap.add_argument(
+        "--validation",
+        action="store_true",
+        help="only the agents, on --validation-episodes validation layouts at 5/25/40 kHz "
+        "(for choosing settings; writes nothing)",
+    )
     args = ap.parse_args(argv)
     if min(args.validation_episodes, args.workers) < 1 or args.episodes < 2:
         ap.error("--episodes must be >= 2 (its intervals need two), --validation-episodes and --workers >= 1")

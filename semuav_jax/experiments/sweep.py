@@ -78,8 +78,9 @@ def policy_spec(text: str) -> dict:
     folder, _, seed = text.partition("#")
     folder = shipped_folder() if folder == "shipped" else Path(folder)
     if not (folder / MODEL_FILE).is_file():
-        raise ValueError(f"policy {text!r} is neither a baseline ({', '.join(sorted(POLICIES))}) nor a finished "
-                         f"train.py run folder")
+        raise ValueError(
+            f"policy {text!r} is neither a baseline ({', '.join(sorted(POLICIES))}) nor a finished train.py run folder"
+        )
     if seed and not seed.isdigit():
         raise ValueError(f"policy {text!r}: the training seed after # must be an integer")
     return {"run": str(folder.resolve()), "seed": int(seed or 0), "weights_sha256": file_hash(folder / MODEL_FILE)}
@@ -96,8 +97,15 @@ def items(grid: dict) -> list[dict]:
     curves = None if grid["curves"] is None else file_hash(grid["curves"])
     out = []
     for point, policy, seed in itertools.product(points(grid), grid["policies"], grid["seeds"]):
-        item = {"point": point, "policy": policy, "spec": policy_spec(policy), "seed": seed,
-                "episodes": grid["episodes"], "scenario": grid["scenario"], "curves_file_sha256": curves}
+        item = {
+            "point": point,
+            "policy": policy,
+            "spec": policy_spec(policy),
+            "seed": seed,
+            "episodes": grid["episodes"],
+            "scenario": grid["scenario"],
+            "curves_file_sha256": curves,
+        }
         item["hash"] = hashlib.sha256(_canonical(item).encode()).hexdigest()[:20]
         out.append(item)
     return out
@@ -119,8 +127,9 @@ def item_path(out, item: dict) -> Path:
 
 def item_params(grid: dict, item: dict):
     try:
-        return scenario_params(grid["scenario"], load_curves(grid["curves"]) if grid["curves"] else None,
-                               **item["point"])
+        return scenario_params(
+            grid["scenario"], load_curves(grid["curves"]) if grid["curves"] else None, **item["point"]
+        )
     except (TypeError, ValueError) as e:
         raise ValueError(f"grid point {item['point']}: {e}") from None
 
@@ -131,8 +140,11 @@ def run_item(grid: dict, item: dict) -> dict:
     keys = point_keys(item["point"], item["seed"], item["episodes"])
     spec = item["spec"]
     if "baseline" in spec:
-        rank = (tsp_ranks(keys, params) if spec["baseline"] == "tsp"
-                else np.broadcast_to(np.arange(params.N, dtype=np.int32), (len(keys), params.N)))
+        rank = (
+            tsp_ranks(keys, params)
+            if spec["baseline"] == "tsp"
+            else np.broadcast_to(np.arange(params.N, dtype=np.int32), (len(keys), params.N))
+        )
         skeys, srank = shard_episodes((keys, jnp.asarray(rank)))
         m = _baseline(resolve(spec["baseline"]), skeys, params, jnp.float32(spec["v_b"]), srank)
     else:
@@ -140,8 +152,13 @@ def run_item(grid: dict, item: dict) -> dict:
         if spec["seed"] >= len(jax.tree.leaves(nets)[0]):
             raise ValueError(f"policy {item['policy']!r}: the run has {len(jax.tree.leaves(nets)[0])} training seeds")
         net = jax.tree.map(lambda x: jnp.asarray(x[spec["seed"]]), nets)
-        m = rollout(greedy_policy(q_network(params, config), config), shard_episodes(keys), params, agent_state(net),
-                    state_axes=None)[0]
+        m = rollout(
+            greedy_policy(q_network(params, config), config),
+            shard_episodes(keys),
+            params,
+            agent_state(net),
+            state_axes=None,
+        )[0]
     m = gather(m)
     if not np.all(m.pop("valid")):
         raise ValueError(f"item {item['hash']}: the simulation left float32 at {item['point']}")
@@ -161,13 +178,16 @@ def merge(out, its: list[dict]) -> dict:
     pooled: mean PSNR with its t interval, arrival with its Wilson interval, coverage."""
     missing = [it for it in its if not item_path(out, it).is_file()]
     if missing:
-        raise ValueError(f"{len(missing)} of {len(its)} items are not done (first: {missing[0]['hash']}); "
-                         "run them before --merge")
+        raise ValueError(
+            f"{len(missing)} of {len(its)} items are not done (first: {missing[0]['hash']}); run them before --merge"
+        )
     groups: dict = {}
     for it in its:
         m = json.loads(item_path(out, it).read_text())["metrics"]
-        g = groups.setdefault(_canonical([it["point"], it["policy"]]), {"point": it["point"], "policy": it["policy"],
-                                                                         "seeds": [], "m": {}})
+        g = groups.setdefault(
+            _canonical([it["point"], it["policy"]]),
+            {"point": it["point"], "policy": it["policy"], "seeds": [], "m": {}},
+        )
         g["seeds"].append(it["seed"])
         for k, v in m.items():
             g["m"].setdefault(k, []).extend(v)
@@ -176,10 +196,21 @@ def merge(out, its: list[dict]) -> dict:
         psnr, ci = mean_ci(g["m"]["mean_psnr"])
         arrived = np.asarray(g["m"]["arrived"], np.float64)
         lo, hi = wilson_interval(arrived.mean(), arrived.size)
-        rows.append({**g["point"], "policy": g["policy"], "seeds": len(g["seeds"]), "episodes": arrived.size,
-                     "mean_psnr": psnr, "ci95": ci, "arrived": float(arrived.mean()), "arrived_lo": float(lo),
-                     "arrived_hi": float(hi), "coverage": float(np.mean(g["m"]["coverage"])),
-                     "mission_time": float(np.mean(g["m"]["mission_time"]))})
+        rows.append(
+            {
+                **g["point"],
+                "policy": g["policy"],
+                "seeds": len(g["seeds"]),
+                "episodes": arrived.size,
+                "mean_psnr": psnr,
+                "ci95": ci,
+                "arrived": float(arrived.mean()),
+                "arrived_lo": float(lo),
+                "arrived_hi": float(hi),
+                "coverage": float(np.mean(g["m"]["coverage"])),
+                "mission_time": float(np.mean(g["m"]["mission_time"])),
+            }
+        )
     return {"rows": rows, "items": len(its)}
 
 
@@ -192,4 +223,3 @@ def table_csv(table: dict) -> str:
     w.writeheader()
     w.writerows(table["rows"])
     return text.getvalue()
-

@@ -1,8 +1,8 @@
 """Command line for the DeepJSCC of MODEL.md section 9: train, curves, figure.
 
-    python -m semuav_jax.jscc train --out runs/jscc --steps 3600
-    python -m semuav_jax.jscc curves --ckpt runs/jscc --out semuav_jax/data/psnr_curves.npz --model-out semuav_jax/data/deepjscc.msgpack
-    python -m semuav_jax.jscc figure --out docs/figures/deepjscc.png
+python -m semuav_jax.jscc train --out runs/jscc --steps 3600
+python -m semuav_jax.jscc curves --ckpt runs/jscc --out semuav_jax/data/psnr_curves.npz --model-out semuav_jax/data/deepjscc.msgpack
+python -m semuav_jax.jscc figure --out docs/figures/deepjscc.png
 """
 
 from __future__ import annotations
@@ -27,8 +27,9 @@ def _train(a) -> None:
     given = {f.name: getattr(a, f.name) for f in dataclasses.fields(TrainConfig) if getattr(a, f.name) is not None}
     if a.resume:
         cfg, _ = load_config(a.out)
-        clash = [f"--{k.replace('_', '-')} {v} (saved {getattr(cfg, k)})"
-                 for k, v in given.items() if v != getattr(cfg, k)]
+        clash = [
+            f"--{k.replace('_', '-')} {v} (saved {getattr(cfg, k)})" for k, v in given.items() if v != getattr(cfg, k)
+        ]
         if clash:
             raise ValueError(f"--resume continues the run saved in {a.out}, whose config differs: {', '.join(clash)}")
     else:
@@ -69,25 +70,42 @@ def main(argv=None) -> int:
     t.add_argument("--steps", type=int, default=None, help="total steps (fixes the lr schedule)")
     t.add_argument("--minutes", type=float, default=None, help="stop (and checkpoint) after this wall-clock time")
     t.add_argument("--resume", action="store_true", help="continue the run saved in --out")
-    t.add_argument("--overwrite", action="store_true",
-                   help="replace the checkpoint in --out (its other files stay) instead of refusing")
+    t.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the checkpoint in --out (its other files stay) instead of refusing",
+    )
     t.add_argument("--batch", type=int, default=None)
     t.add_argument("--lr", type=float, default=None)
     t.add_argument("--snr-db", type=float, default=None, help="training AWGN SNR in dB")
     t.add_argument("--width", type=int, default=None, help="conv channels")
     t.add_argument("--seed", type=int, default=None)
     t.add_argument("--init-from", default=None, help="start from the parameters of the run in this directory")
-    t.add_argument("--monotone-weight", type=float, default=None,
-                   help="weight of the hinge that makes loss(k2) <= loss(k1) for prefixes k1 < k2 (0: plain loss)")
+    t.add_argument(
+        "--monotone-weight",
+        type=float,
+        default=None,
+        help="weight of the hinge that makes loss(k2) <= loss(k1) for prefixes k1 < k2 (0: plain loss)",
+    )
     t.add_argument("--monotone-margin", type=float, default=None, help="margin of that hinge (dB)")
-    t.add_argument("--monotone-gap", type=int, default=None,
-                   help="half of the hinge's pairs have k2 - k1 uniform in 1..this")
-    t.add_argument("--channel", choices=CHANNELS, default=None,
-                   help="training channel: AWGN at --snr-db, or noise-free 8-bit I/Q as in the curves")
-    t.add_argument("--mask-input", action="store_true", default=None,
-                   help="the decoder also sees which latent entries arrived")
-    t.add_argument("--synthetic-fraction", type=float, default=None,
-                   help="fraction of each batch replaced by synthetic dead-leaves images")
+    t.add_argument(
+        "--monotone-gap", type=int, default=None, help="half of the hinge's pairs have k2 - k1 uniform in 1..this"
+    )
+    t.add_argument(
+        "--channel",
+        choices=CHANNELS,
+        default=None,
+        help="training channel: AWGN at --snr-db, or noise-free 8-bit I/Q as in the curves",
+    )
+    t.add_argument(
+        "--mask-input", action="store_true", default=None, help="the decoder also sees which latent entries arrived"
+    )
+    t.add_argument(
+        "--synthetic-fraction",
+        type=float,
+        default=None,
+        help="fraction of each batch replaced by synthetic dead-leaves images",
+    )
     t.add_argument("--images", default=None, help="train on the images of this folder instead")
     t.add_argument("--cifar10", default=None, help="train on CIFAR-10 python batches in this folder instead")
     t.set_defaults(func=_train)

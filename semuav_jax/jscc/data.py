@@ -189,7 +189,9 @@ def dead_leaves(n: int, rng: np.random.Generator, disks: int = 48) -> np.ndarray
     colour = rng.random((n, disks, 3)).astype(np.float32)
     out = np.repeat(rng.random((n, 1, 1, 3)).astype(np.float32), CROP, axis=1).repeat(CROP, axis=2)
     for j in range(disks):
-        inside = (yy - centre[:, j, 0, None, None]) ** 2 + (xx - centre[:, j, 1, None, None]) ** 2 < r[:, j, None, None] ** 2
+        inside = (yy - centre[:, j, 0, None, None]) ** 2 + (xx - centre[:, j, 1, None, None]) ** 2 < r[
+            :, j, None, None
+        ] ** 2
         out = np.where(inside[..., None], colour[:, j, None, None, :], out)
     return out
 

@@ -17,9 +17,9 @@ import numpy as np
 from flax import serialization
 
 from semuav_jax.curves import default_curves_path, load_curves, save_curves, validate_curves
-from semuav_jax.jscc import data
-from semuav_jax.jscc.model import BITS_PER_SYMBOL, IMAGE_SHAPE, IQ_CLIP, M, DeepJSCC, prefix_mask, quantize_iq, truncate
 from semuav_jax.io import atomic_write, check_writable_folder
+from semuav_jax.jscc import data
+from semuav_jax.jscc.model import BITS_PER_SYMBOL, IMAGE_SHAPE, IQ_CLIP, DeepJSCC, M, prefix_mask, quantize_iq, truncate
 from semuav_jax.jscc.train import load_checkpoint, load_config, make_optimizer, model_of
 
 DEFAULT_MODEL = "deepjscc.msgpack"
@@ -113,7 +113,11 @@ def write_curves(ckpt: str | os.PathLike, out: str | os.PathLike, model_out: str
         "ratio": "1/6",
         "ratio_value": 2 * M / int(np.prod(IMAGE_SHAPE)),
         "bits_per_symbol": BITS_PER_SYMBOL,
-        "iq_quantizer": {"bits_per_component": BITS_PER_SYMBOL // 2, "clip": IQ_CLIP, "levels": 2 ** (BITS_PER_SYMBOL // 2)},
+        "iq_quantizer": {
+            "bits_per_component": BITS_PER_SYMBOL // 2,
+            "clip": IQ_CLIP,
+            "levels": 2 ** (BITS_PER_SYMBOL // 2),
+        },
         "evaluation": "noise-free; first k symbols renormalized to unit average power, 8-bit I/Q, tail zero-padded",
         "psnr": "peak 1.0, decoded image rounded to 8 bits",
         "latent_order": "channel-major (8x8x8 latent, 32 complex symbols per channel)",
@@ -122,7 +126,11 @@ def write_curves(ckpt: str | os.PathLike, out: str | os.PathLike, model_out: str
         "train_steps_done": step,
         "train_seconds": history[-1][2] if history else None,
         "dataset": "32x32 crops of colour photos shipped in the scikit-image and scikit-learn wheels"
-        + (f", {cfg.synthetic_fraction:.0%} of each batch synthetic dead-leaves images" if cfg.synthetic_fraction else ""),
+        + (
+            f", {cfg.synthetic_fraction:.0%} of each batch synthetic dead-leaves images"
+            if cfg.synthetic_fraction
+            else ""
+        ),
         "train_photos": list(data.SKIMAGE_TRAIN + data.SKLEARN_TRAIN),
         "train_scales": list(data.SCALES),
         "test_photos": list(data.SKIMAGE_TEST + data.SKLEARN_TEST),

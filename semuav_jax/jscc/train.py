@@ -98,7 +98,9 @@ def start_params(cfg: TrainConfig):
     src_cfg, _ = load_config(cfg.init_from)
     for name in ("width", "mask_input"):
         if getattr(src_cfg, name) != getattr(cfg, name):
-            raise ValueError(f"--init-from {cfg.init_from} has {name} {getattr(src_cfg, name)}, not {getattr(cfg, name)}")
+            raise ValueError(
+                f"--init-from {cfg.init_from} has {name} {getattr(src_cfg, name)}, not {getattr(cfg, name)}"
+            )
     params, _, _, _ = load_checkpoint(cfg.init_from, src_cfg, make_optimizer(src_cfg))
     return params
 
@@ -119,8 +121,12 @@ def save_checkpoint(out: Path, cfg: TrainConfig, params, opt_state, step: int, h
         current = None
     if current != json.loads(json.dumps(dataclasses.asdict(cfg))):
         atomic_write(p, _config_text(cfg).encode())
-    state = {"params": params, "opt_state": opt_state, "step": step,
-             "history": np.asarray(history, np.float64).reshape(-1, 3)}
+    state = {
+        "params": params,
+        "opt_state": opt_state,
+        "step": step,
+        "history": np.asarray(history, np.float64).reshape(-1, 3),
+    }
     atomic_write(out / CKPT_FILE, serialization.to_bytes(state))
 
 
@@ -136,8 +142,10 @@ def check_out(out: str | os.PathLike, resume: bool = False, overwrite: bool = Fa
     held = [n for n in (CKPT_FILE, CONFIG_FILE) if (out / n).exists()]
     if held and not (resume or overwrite):
         folder.release()
-        raise ValueError(f"--out {out} already holds a checkpoint ({', '.join(held)}): "
-                         "give --resume to continue it or --overwrite to replace it")
+        raise ValueError(
+            f"--out {out} already holds a checkpoint ({', '.join(held)}): "
+            "give --resume to continue it or --overwrite to replace it"
+        )
     for n in (CKPT_FILE, CONFIG_FILE):
         folder.record(n)
     return folder
@@ -172,7 +180,8 @@ def load_checkpoint(ckpt_dir: str | os.PathLike, cfg: TrainConfig, opt: optax.Gr
         raise ValueError(f"{p}: unreadable checkpoint ({type(e).__name__}: {e})") from e
     got, want = jax.tree_util.tree_leaves(state), jax.tree_util.tree_leaves(template)
     if jax.tree_util.tree_structure(state) != jax.tree_util.tree_structure(template) or any(
-            np.shape(a) != np.shape(b) for a, b in zip(got, want)):
+        np.shape(a) != np.shape(b) for a, b in zip(got, want)
+    ):
         raise ValueError(f"{p}: its arrays do not match {Path(ckpt_dir) / CONFIG_FILE} (not this run's checkpoint)")
     if history is None:  # written before checkpoints held their history
         history = load_config(ckpt_dir)[1].get("history", [])
@@ -251,8 +260,10 @@ def _train(cfg, photos, out, resume, minutes, overwrite, ckpt_every_s, progress,
             window = []
             if not (np.isfinite(mean_loss) and all(np.isfinite(w).all() for w in jax.tree_util.tree_leaves(params))):
                 kept = f"; {out} keeps its last checkpoint" if out is not None and (out / CKPT_FILE).is_file() else ""
-                raise ValueError(f"training diverged at step {step} (loss {mean_loss}, or non-finite weights): nothing "
-                                 f"saved for it{kept}; change the options (e.g. --lr, --snr-db) and start again")
+                raise ValueError(
+                    f"training diverged at step {step} (loss {mean_loss}, or non-finite weights): nothing "
+                    f"saved for it{kept}; change the options (e.g. --lr, --snr-db) and start again"
+                )
             history.append((step, mean_loss, elapsed0 + time.time() - t0))
             if bar is not None:
                 bar.set_postfix(psnr=f"{-mean_loss:.2f}")
