@@ -19,8 +19,10 @@ from pathlib import Path
 
 import jax
 
-from semuav_jax.agents.ddqn import PRESETS, DDQNConfig, make_train, preset_config, ring_buffer
-from semuav_jax.agents.scenarios import scenario_params
+from semuav_jax.agents.config import DDQNConfig
+from semuav_jax.agents.replay import ring_buffer
+from semuav_jax.agents.run_config import PRESETS, RunConfig
+from semuav_jax.agents.trainer import make_train
 from semuav_jax.io import atomic_write
 
 
@@ -39,8 +41,8 @@ def replay_buffer(name: str, config: DDQNConfig):
 
 
 def measure(seeds: int, chunks: int, preset: str, buffer: str = "ring") -> dict:
-    params = scenario_params("random", None, reward_mode=PRESETS[preset].get("reward_mode", "gain"), B=25e3)
-    config = preset_config(preset)
+    run = RunConfig.from_preset(preset)
+    params, config = run.env_params(), run.agent
     trainer = make_train(config, params, buffer=replay_buffer(buffer, config))
     keys = jax.random.split(jax.random.PRNGKey(0), seeds)
     state = jax.jit(jax.vmap(trainer.init))(keys)

@@ -1,22 +1,23 @@
-"""Batched episodes: one ``lax.scan`` over the K slots, ``vmap`` over episodes, one compiled program.
+"""Batched episodes: one ``lax.scan`` over the K slots of ``engine.slot``, ``vmap`` over episodes,
+one compiled program.
 
-A policy is a pure function ``policy(policy_state, env_state, params) -> (acceleration, policy_state)``
-(MODEL.md section 7); discrete agents map their action through ``actions.action_to_accel``.
+A policy is an ``engine.Policy`` or a bare ``fn(policy_state, env_state, params) -> (acceleration,
+policy_state)`` (MODEL.md section 7). A policy with a shield reports ``shield_share`` (section 8).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from functools import partial
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 
-from semuav_jax.env import EnvState, reset_state, transition_u
+from semuav_jax.engine import Policy, as_policy, observe, slot
+from semuav_jax.env import EnvState, reset_state
 from semuav_jax.metrics import episode_metrics
 from semuav_jax.params import EnvParams, validate_params
-
-Policy = Callable
 
 TRACE_FIELDS = ("q", "v", "a_prev", "delay", "m", "phi", "x", "done")
 
@@ -36,17 +37,40 @@ def delay_draws(key, params: EnvParams):
     return jax.random.uniform(key, (params.K,))
 
 
-def _slot(policy: Policy, params: EnvParams, trace: bool):
-    """The scan body of one slot: the policy's command, the transition, the slot's trace entry."""
+class Carry(NamedTuple):
+    """What the slot loop carries: the state, the policy's observation of it, the policy's state and
+    the shield's count (slots it replaced the action, slots the episode ran)."""
 
-    def body(carry, u):
-        state, ps = carry
-        accel, ps = policy(ps, state, params)
-        state, rew = transition_u(u, state, accel, params)
-        out = {f: getattr(state, f) for f in TRACE_FIELDS} | {"reward": rew} if trace else None
-        return (state, ps), out
+    state: EnvState
+    obs: Any
+    policy_state: Any
+    shielded: jax.Array
+    live: jax.Array
+
+
+def start(policy: Policy, state: EnvState, policy_state, params: EnvParams) -> Carry:
+    zero = jnp.zeros((), jnp.int32)
+    return Carry(state, observe(policy, state, params), policy_state, zero, zero)
+
+
+def _slot(policy: Policy, params: EnvParams, trace: bool):
+    """The scan body of one slot: ``engine.slot`` and the slot's trace entry."""
+
+    def body(c: Carry, u):
+        state, obs, ps, out = slot(policy, u, c.state, c.obs, c.policy_state, params)
+        c = Carry(state, obs, ps, c.shielded + out.shielded, c.live + ~c.state.done)
+        tr = {f: getattr(state, f) for f in TRACE_FIELDS} | {"reward": out.reward} if trace else None
+        return c, tr
 
     return body
+
+
+def finish(policy: Policy, c: Carry, params: EnvParams) -> dict:
+    """The episode's metrics (MODEL.md section 8), with ``shield_share`` for a shielded policy."""
+    metrics = episode_metrics(c.state, params)
+    if policy.shield is not None:
+        metrics["shield_share"] = c.shielded / jnp.maximum(c.live, 1)
+    return metrics
 
 
 def _check_valid(metrics) -> None:
@@ -61,16 +85,14 @@ def episode(policy: Policy, key, params: EnvParams, policy_state=None, init_stat
 
     The trace (when asked) holds, per slot, the state fields of ``TRACE_FIELDS`` and the reward.
     """
+    policy = as_policy(policy)
     k_reset, k_steps = jax.random.split(key)
     state = reset_state(k_reset, params) if init_state is None else init_state
     # unroll=2 lets XLA fuse across two slots: ~15 % faster on CPU (docs/performance.md)
-    (final, ps), tr = jax.lax.scan(
-        _slot(policy, params, trace), (state, policy_state), delay_draws(k_steps, params), unroll=2
+    c, tr = jax.lax.scan(
+        _slot(policy, params, trace), start(policy, state, policy_state, params), delay_draws(k_steps, params), unroll=2
     )
-    metrics = episode_metrics(final, params)
-    if hasattr(ps, "episode_metrics"):  # a policy may report its own (e.g. the shield share)
-        metrics = metrics | ps.episode_metrics()
-    return metrics, tr
+    return finish(policy, c, params), tr
 
 
 @partial(jax.jit, static_argnames=("policy", "trace", "state_axes"))
@@ -81,7 +103,9 @@ def _rollout(policy, keys, params, policy_state, init_state, trace, state_axes):
     )
 
 
-def rollout(policy: Policy, keys, params: EnvParams, policy_state=None, init_state=None, trace=False, state_axes=0):
+def rollout(
+    policy: Policy | Callable, keys, params: EnvParams, policy_state=None, init_state=None, trace=False, state_axes=0
+):
     """Run ``len(keys)`` episodes in one jitted, vmapped program.
 
     ``policy_state`` carries a leading episode axis, or is shared by all episodes with
@@ -94,23 +118,18 @@ def rollout(policy: Policy, keys, params: EnvParams, policy_state=None, init_sta
     keys = jnp.asarray(keys)
     if keys.ndim != 2 and not jax.dtypes.issubdtype(keys.dtype, jax.dtypes.prng_key):
         raise ValueError(f"keys must be a batch of PRNG keys (E, 2), got shape {keys.shape}")
-    metrics, tr = _rollout(policy, keys, params, policy_state, init_state, trace, state_axes)
+    metrics, tr = _rollout(as_policy(policy), keys, params, policy_state, init_state, trace, state_axes)
     _check_valid(metrics)
     return metrics, tr
 
 
 @partial(jax.jit, static_argnames=("policy", "trace"))
-def _segment(policy, states, policy_state, draws, params, trace):
-    """The slots of ``draws`` (E, R) from ``states``: the body of :func:`episode` over R slots."""
-
-    def one(state, ps, u):
-        return jax.lax.scan(_slot(policy, params, trace), (state, ps), u)
-
-    (states, policy_state), tr = jax.vmap(one)(states, policy_state, draws)
-    return states, policy_state, tr
+def _segment(policy, carry: Carry, draws, params, trace):
+    """The slots of ``draws`` (E, R) from ``carry``: the body of :func:`episode` over R slots."""
+    return jax.vmap(lambda c, u: jax.lax.scan(_slot(policy, params, trace), c, u))(carry, draws)
 
 
-def rollout_replanned(policy: Policy, keys, params: EnvParams, replan: Callable, every: int, trace=False):
+def rollout_replanned(policy: Policy | Callable, keys, params: EnvParams, replan: Callable, every: int, trace=False):
     """``rollout`` for a policy that a host function re-plans every ``every`` slots (receding horizon).
 
     ``replan(states, policy_state) -> policy_state`` runs outside ``jit`` on the batch of current
@@ -121,15 +140,19 @@ def rollout_replanned(policy: Policy, keys, params: EnvParams, replan: Callable,
     validate_params(params)
     if int(every) != every or every < 1:
         raise ValueError(f"every must be an integer number of slots >= 1, got {every!r}")
+    policy = as_policy(policy)
     keys = jnp.asarray(keys)
     split = jax.vmap(jax.random.split)(keys)
     states = jax.vmap(reset_state, (0, None))(split[:, 0], params)
     draws = jax.vmap(delay_draws, (0, None))(split[:, 1], params)
-    ps, parts = None, []
+    c, parts = None, []
     for t0 in range(0, params.K, int(every)):
-        ps = replan(states, ps)
-        states, ps, tr = _segment(policy, states, ps, draws[:, t0 : t0 + int(every)], params, trace)
+        if c is None:
+            c = jax.vmap(lambda s, ps: start(policy, s, ps, params))(states, replan(states, None))
+        else:
+            c = c._replace(policy_state=replan(c.state, c.policy_state))
+        c, tr = _segment(policy, c, draws[:, t0 : t0 + int(every)], params, trace)
         parts.append(tr)
-    metrics = jax.vmap(episode_metrics, (0, None))(states, params)
+    metrics = jax.vmap(lambda c: finish(policy, c, params))(c)
     _check_valid(metrics)
     return metrics, (jax.tree.map(lambda *x: jnp.concatenate(x, axis=1), *parts) if trace else None)

@@ -5,19 +5,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from semuav_jax.agents.ddqn import (
-    DDQNConfig,
-    Transition,
-    double_q_target,
-    epsilon,
-    make_train,
-    n_step_transition,
-    replay_add,
-    replay_init,
-    replay_sample,
-)
+from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.evaluate import evaluate_agent
+from semuav_jax.agents.replay import Transition, n_step_transition, replay_add, replay_init, replay_sample
 from semuav_jax.agents.scenarios import scenario_params
+from semuav_jax.agents.trainer import double_q_target, epsilon, make_train
 
 SMALL = dict(num_envs=8, steps_per_chunk=10, batch_size=16, buffer_size=400, learning_starts=64, total_steps=8 * 10 * 6)
 
@@ -146,7 +138,7 @@ def _permuted(s):
 def test_agent_inputs_ignore_device_order(curves):
     """Permuting the devices of a state leaves the Q-network's input unchanged (random layouts), for
     both action modes, mid-episode (some devices partly or fully received)."""
-    from semuav_jax.agents.ddqn import agent_input
+    from semuav_jax.agents.policy import agent_input
     from semuav_jax.env import reset_state
 
     params = scenario_params("random", curves)
@@ -187,28 +179,45 @@ def test_n_step_transition_by_hand():
     np.testing.assert_array_equal(t.action, [1, 2])
 
 
-def test_agent_env_observes_agent_input_and_reports_final_metrics(curves):
-    """Training steps AgentEnv (SemUAVEnv + gymnax auto-reset): its observation is the agent's input,
-    and at an episode's end info holds the input and metrics of the state before the reset."""
-    from semuav_jax.agents.ddqn import AgentEnv, agent_input
+def _close(a, b):
+    if np.issubdtype(np.asarray(a).dtype, np.floating):
+        np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-6)
+    else:
+        np.testing.assert_array_equal(a, b)
+
+
+def test_training_steps_the_gymnax_step_through_the_agent(curves):
+    """Training steps ``engine.slot`` with gymnax's auto-reset (``trainer.env_slot``): for the same
+    key its state, reward, end and reset equal ``SemUAVEnv.step`` of the shielded action; its
+    observation is the agent's input, and at an episode's end it reports the input and metrics of
+    the state before the reset."""
+    from semuav_jax.agents.policy import Explore, agent_input, agent_shield, input_size
+    from semuav_jax.agents.trainer import env_slot
+    from semuav_jax.env import SemUAVEnv
     from semuav_jax.metrics import episode_metrics
 
     params = scenario_params("random", curves, K=6)
     cfg = DDQNConfig(**SMALL)
-    env = AgentEnv(params, cfg)
-    assert env.observation_space(params).shape == (
-        int(agent_input(env.reset(jax.random.key(0), params)[1], params, cfg).shape[0]),
-    )
-    step_env = jax.jit(env.step_env)
-    obs, s = env.reset(jax.random.key(0), params)
+    tr = make_train(cfg, params)
+    env = SemUAVEnv(params, "waypoint")
+    net = tr.network.init(jax.random.key(1), jnp.zeros((input_size(params, cfg),)))
+    _, s = env.reset(jax.random.key(0), params)
+    step = jax.jit(lambda k, s, o, ps: env_slot(tr, k, s, o, ps, params))
     for t in range(6):
         k = jax.random.key(10 + t)
-        obs, s_next, r, term, trunc, info = env.step(k, s, 15, params)  # HOME at v_max
-        _, s_st, _, _, _ = step_env(jax.random.split(k)[0], s, 15, params)
-        np.testing.assert_allclose(info["final_observation"], agent_input(s_st, params, cfg), rtol=1e-6, atol=1e-6)
+        explore = Explore(net, jnp.float32(1.0), jnp.float32(0.0), jnp.int32(4 - t % 2))  # explore: device 0
+        s_next, obs, out, final_obs, done, met = step(k, s, agent_input(s, params, cfg), explore)
+        sent = agent_shield(cfg)(4 - t % 2, s, params)
+        _, g_next, g_rew, g_term, _, info = env.step(k, s, sent, params)
+        jax.tree.map(_close, s_next, g_next)  # jitted vs eager float32: equal up to rounding
+        np.testing.assert_array_equal([done, out.action], [g_term, sent])
+        np.testing.assert_allclose(out.reward, g_rew, rtol=1e-6, atol=1e-6)
+        np.testing.assert_allclose(obs, agent_input(s_next, params, cfg), rtol=1e-6, atol=1e-6)
+        _, s_st, _, _, _ = env.step_env(jax.random.split(k)[0], s, sent, params)
+        np.testing.assert_allclose(final_obs, agent_input(s_st, params, cfg), rtol=1e-6, atol=1e-6)
         for name, v in episode_metrics(s_st, params).items():
-            np.testing.assert_array_equal(info["metrics"][name], v)
-        if bool(term):
+            _close(met[name], v)
+        if bool(done):
             assert int(s_next.t) == 0 and int(s_st.t) == t + 1
             break
         s = s_next
@@ -218,7 +227,7 @@ def test_agent_env_observes_agent_input_and_reports_final_metrics(curves):
 
 def test_dueling_head_by_hand():
     """Dueling head: Q(s, a) = V(s) + A(s, a) - mean_a A(s, a), computed here from its own layers."""
-    from semuav_jax.agents.ddqn import QNetwork
+    from semuav_jax.agents.network import QNetwork
 
     net = QNetwork(5, (8,), dueling=True)
     x = jax.random.normal(jax.random.key(0), (4, 3))

@@ -113,7 +113,7 @@ def agent():
 def _edited(tmp_path, agent, run=None, weights=None):
     blob = {
         "format": "semuav-jax agent 1",
-        "run": json.dumps(agent.run if run is None else run),
+        "run": json.dumps(agent.run.to_dict() if run is None else run),
         "weights": jax.tree.map(np.asarray, agent.weights) if weights is None else weights,
     }
     if weights == "missing":
@@ -124,16 +124,16 @@ def _edited(tmp_path, agent, run=None, weights=None):
 
 
 def test_agent_load_checks_weights_against_the_config(tmp_path, agent):
-    hidden = json.loads(json.dumps(agent.run))
-    hidden["ddqn"]["hidden"] = [8]
-    unknown = json.loads(json.dumps(agent.run))
-    unknown["ddqn"]["foo"] = 1
+    hidden = agent.run.to_dict()
+    hidden["agent"]["hidden"] = [8]
+    unknown = agent.run.to_dict()
+    unknown["agent"]["foo"] = 1
     w = jax.tree.map(np.asarray, agent.weights)
     w["params"]["Dense_0"]["kernel"] = w["params"]["Dense_0"]["kernel"][:, :5]
     cases = [
         ({"run": hidden}, "do not match its config .*Dense_0/kernel"),
         ({"weights": w}, r"Dense_0/kernel \(104, 5\) \(expected \(104, 128\)\)"),
-        ({"run": unknown}, "unknown key in its 'ddqn' block: foo"),
+        ({"run": unknown}, "unknown key in its agent config: foo"),
         ({"run": [1]}, "not a semuav-jax agent file"),
         ({"weights": "missing"}, "not a semuav-jax agent file"),
         ({"weights": "a string"}, "do not match its config"),
@@ -264,7 +264,7 @@ def _stopped_run(tmp_path):
         (lambda c: c.update(seeds="1"), "seeds must be an integer >= 1"),
         (lambda c: c.update(seeds=-1), "seeds must be an integer >= 1"),
         (lambda c: c.update(segments=0), "segments must be an integer >= 1"),
-        (lambda c: c["ddqn"].update(total_steps=80000), "was edited after the run wrote it"),
+        (lambda c: c["agent"].update(total_steps=80000), "was edited after the run wrote it"),
     ],
 )
 def test_resume_revalidates_config_json(tmp_path, capsys, edit, msg):

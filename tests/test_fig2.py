@@ -11,8 +11,9 @@ import jax
 import numpy as np
 import pytest
 
-from semuav_jax.agents.ddqn import DDQNConfig, make_train
+from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.scenarios import scenario_params
+from semuav_jax.agents.trainer import make_train
 from semuav_jax.experiments import fig2
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -228,14 +229,14 @@ def test_eval_out_or_agent_that_cannot_be_used_is_one_line(tmp_path, capsys):
     }
     (run / "config.json").write_text(json.dumps(config))
     code, err = _eval_main(capsys, "--out", str(tmp_path / "o"), "--agent", str(run))
-    assert code == 2 and "unknown key in its 'ddqn' block: learning_rate" in err and err.count("\n") == 1, err
+    assert code == 2 and "unknown key in its agent config: learning_rate" in err and err.count("\n") == 1, err
     del config["ddqn"]
     (run / "config.json").write_text(json.dumps(config))
     code, err = _eval_main(capsys, "--out", str(tmp_path / "o"), "--agent", str(run))
-    assert code == 2 and "has no 'ddqn' block" in err and err.count("\n") == 1, err
+    assert code == 2 and "is not a train.py run config" in err and err.count("\n") == 1, err
     from semuav_jax.experiments.learned import main as compare
 
-    assert compare([str(run)]) == 2 and "has no 'ddqn' block" in capsys.readouterr().err
+    assert compare([str(run)]) == 2 and "is not a train.py run config" in capsys.readouterr().err
 
 
 def test_eval_ctrl_c_is_one_line_exit_130(tmp_path, capsys, monkeypatch):

@@ -9,8 +9,9 @@ import pytest
 from test_control import time_home_by_hand
 
 from semuav_jax.actions import action_to_accel
-from semuav_jax.agents.ddqn import DDQNConfig, make_train
+from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.shield import home_action, home_speed, shield
+from semuav_jax.agents.trainer import make_train
 from semuav_jax.control import time_home
 from semuav_jax.env import reset_state
 from semuav_jax.rollout import episode

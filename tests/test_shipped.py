@@ -5,10 +5,10 @@ import jax
 import numpy as np
 import pytest
 
-from semuav_jax.agents.ddqn import DDQNConfig, q_network
+from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.evaluate import evaluate_agent, seed_metrics
-from semuav_jax.agents.runs import EVAL_FILE, load_shipped, run_params, shipped_folder
-from semuav_jax.agents.scenarios import scenario_params
+from semuav_jax.agents.network import q_network
+from semuav_jax.agents.runs import EVAL_FILE, load_run, shipped_folder
 from semuav_jax.curves import load_curves
 from semuav_jax.keys import TEST_SEED, episode_keys
 from semuav_jax.provenance import curves_hash
@@ -17,9 +17,9 @@ from semuav_jax.provenance import curves_hash
 def test_shipped_agent_is_the_default_command():
     import json
 
-    run, config, nets = load_shipped()
-    assert run["command"] == "python train.py" and config == DDQNConfig() and run["r_g"] == 0.0
-    assert run["curves"] is None and np.asarray(nets["params"]["Dense_0"]["kernel"]).shape[0] == run["seeds"] == 3
+    run, nets = load_run(shipped_folder())
+    assert run.command == "python train.py" and run.agent == DDQNConfig() and run.env["r_g"] == 0.0
+    assert run.curves is None and np.asarray(nets["params"]["Dense_0"]["kernel"]).shape[0] == run.seeds == 3
     ev = json.loads((shipped_folder() / EVAL_FILE).read_text())
     assert ev["curves_sha256"] == curves_hash(load_curves().C) and ev["test_seed"] == TEST_SEED
     assert len(ev["commit"].split("+")[0]) == 40
@@ -30,10 +30,11 @@ def test_recorded_evaluation_reproduces():
     """Every seed's mean PSNR at 25 kHz on the recorded test layouts, within its recorded 95 % CI."""
     import json
 
-    run, config, nets = load_shipped()
+    run, nets = load_run(shipped_folder())
+    config = run.agent
     ev = json.loads((shipped_folder() / EVAL_FILE).read_text())
     row = next(r for r in ev["rows"] if r["B"] == 25e3)
-    params = scenario_params("random", reward_mode=run["reward_mode"], B=25e3, kappa_c=run["kappa_c"])
+    params = run.env_params().replace(B=25e3)
     network = q_network(params, config)
     keys = episode_keys(TEST_SEED, ev["episodes"])
     m = seed_metrics(network, nets, config, keys, params, (25e3,))
@@ -44,13 +45,13 @@ def test_recorded_evaluation_reproduces():
 @pytest.mark.slow
 def test_seed_metrics_is_a_loop_over_seeds_and_bandwidths():
     """The program vmapped over seeds and B gives each seed's own evaluation at each B exactly."""
-    run, config, nets = load_shipped()
-    params = scenario_params("random", reward_mode=run["reward_mode"], kappa_c=run["kappa_c"])
+    run, nets = load_run(shipped_folder())
+    params, config = run.env_params(), run.agent
     network = q_network(params, config)
     keys = episode_keys(7, 12)
     bandwidths = (5e3, 40e3)
     m = seed_metrics(network, nets, config, keys, params, bandwidths)
-    for s in range(run["seeds"]):
+    for s in range(run.seeds):
         for j, b in enumerate(bandwidths):
             one = evaluate_agent(network, jax.tree.map(lambda x: x[s], nets), config, keys, params.replace(B=b))
             for k in ("mean_psnr", "arrived", "shield_share"):
@@ -64,12 +65,12 @@ def test_validation_table_is_the_seeds_on_validation_layouts(capsys):
     from semuav_jax.experiments.learned import main
     from semuav_jax.keys import VALIDATION_SEED
 
-    run, config, nets = load_shipped()
-    params = run_params(run).replace(B=25e3)
+    run, nets = load_run(shipped_folder())
+    params, config = run.env_params().replace(B=25e3), run.agent
     keys = episode_keys(VALIDATION_SEED, 4)
     assert main([str(shipped_folder()), "--validation", "--validation-episodes", "4"]) == 0
     rows = [r for r in capsys.readouterr().out.splitlines() if r.startswith(f"| {shipped_folder()}")]
-    assert len(rows) == run["seeds"]
+    assert len(rows) == run.seeds
     network = q_network(params, config)
     for s, row in enumerate(rows):
         w = jax.tree.map(lambda x: x[s], nets)

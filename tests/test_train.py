@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from semuav_jax.agents.ddqn import DDQNConfig
+from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.curves import save_curves
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -64,7 +64,7 @@ def test_outputs(run_dir):
     ):
         assert (run_dir / f).is_file(), f
     cfg = json.loads((run_dir / "config.json").read_text())
-    assert cfg["seeds"] == 2 and cfg["ddqn"]["lr"] == DDQNConfig().lr and cfg["command"].startswith("python train.py")
+    assert cfg["seeds"] == 2 and cfg["agent"]["lr"] == DDQNConfig().lr and cfg["command"].startswith("python train.py")
     rows = list(csv.DictReader(open(run_dir / "metrics.csv")))
     assert len(rows) == 2 * 4  # 2 seeds x 80 / (4 envs x 5 steps) chunks
     ev = json.loads((run_dir / "eval.json").read_text())
@@ -97,9 +97,9 @@ def test_options_come_from_the_config_and_the_preset(tmp_path, curves_file):
     )
     assert res.returncode == 0, res.stderr
     cfg = json.loads((out / "config.json").read_text())
-    d = cfg["ddqn"]
+    d = cfg["agent"]
     assert (d["actions"], d["lr"], d["n_step"], d["bandwidth_range"]) == ("table", 5e-5, 1, None)
-    assert d["hidden"] == [32, 16] and d["shield_margin"] is None and cfg["reward_mode"] == "paper"
+    assert d["hidden"] == [32, 16] and d["shield_margin"] is None and cfg["env"]["reward_mode"] == "paper"
 
 
 @pytest.mark.slow
@@ -193,7 +193,7 @@ def test_resume_refuses_other_options_and_broken_checkpoints(curves_file, tmp_pa
     )
     assert res.returncode == 2 and "--seed 5 (saved 0)" in res.stderr and "--num-envs" not in res.stderr
     for clash in (
-        "--bandwidth 5000.0 (saved 25000.0)",
+        "--env B=5000.0 (saved 25000.0)",
         "--total-steps 160 (saved 80)",
         f"--curves synthetic (saved {curves_file})",
     ):
@@ -203,7 +203,7 @@ def test_resume_refuses_other_options_and_broken_checkpoints(curves_file, tmp_pa
     res = _train("--out", str(out), "--resume")
     assert res.returncode == 2 and "unreadable" in res.stderr and "Traceback" not in res.stderr
     cfg = json.loads((out / "config.json").read_text())
-    cfg["ddqn"]["hidden"] = [8]
+    cfg["agent"]["hidden"] = [8]
     (out / "config.json").write_text(json.dumps(cfg))
     (out / "checkpoint.msgpack").write_bytes(ckpt)
     res = _train("--out", str(out), "--resume")
@@ -238,17 +238,17 @@ def test_overwrite_deletes_only_run_files(curves_file, tmp_path):
         (["--seeds", "0"], "--seeds"),
         (["--total-steps", "3"], "less than one chunk"),
         (["--scenario", "moon"], "invalid choice"),
-        (["--bandwidth", "-5"], "bandwidth must be a finite number > 0"),
+        (["--bandwidth", "-5"], "B must be > 0, got -5.0"),
         (["--curves", "/nonexistent.npz"], "not found"),
-        (["--lr", "nan"], "lr must be finite and > 0"),
-        (["--lr", "inf"], "lr must be finite and > 0"),
-        (["--total-steps", "0"], "total_steps must be a positive integer"),
-        (["--total-steps", "-1"], "total_steps must be a positive integer"),
-        (["--gamma", "nan"], "gamma must be in [0, 1]"),
-        (["--hidden", "0"], "hidden must be"),
-        (["--max-grad-norm", "nan"], "max_grad_norm must be finite"),
-        (["--shield-margin", "inf"], "shield_margin must be finite"),
-        (["--bandwidth-range", "nan", "5e3"], "bandwidth_range"),
+        (["--lr", "nan"], "--lr must be finite and > 0"),
+        (["--lr", "inf"], "--lr must be finite and > 0"),
+        (["--total-steps", "0"], "--total-steps must be a positive integer"),
+        (["--total-steps", "-1"], "--total-steps must be a positive integer"),
+        (["--gamma", "nan"], "--gamma must be in [0, 1]"),
+        (["--hidden", "0"], "--hidden must be"),
+        (["--max-grad-norm", "nan"], "--max-grad-norm must be finite"),
+        (["--shield-margin", "inf"], "--shield-margin must be finite"),
+        (["--bandwidth-range", "nan", "5e3"], "--bandwidth-range must be"),
     ],
 )
 def test_bad_options(tmp_path, curves_file, args, msg):
@@ -280,18 +280,18 @@ def _resume_error(capsys, out) -> str:
 
 
 def test_resume_of_a_broken_run_config_is_one_line(tmp_path, capsys):
-    """config.json without its ddqn block, without a scenario key, with a key DDQNConfig does not know,
-    or not JSON: --resume stops with one line (exit code 2) naming the file, before anything is loaded."""
+    """config.json without its agent or env block, with a key DDQNConfig does not know, or not JSON:
+    --resume stops with one line (exit code 2) naming the file, before anything is loaded."""
     from semuav_jax.cli.train import parse_args, run_config
 
-    good = run_config(parse_args(["--out", str(tmp_path / "x"), "--curves", "synthetic"]))
+    good = run_config(parse_args(["--out", str(tmp_path / "x"), "--curves", "synthetic"])).to_dict()
     out = tmp_path / "r"
     out.mkdir()
     (out / "checkpoint.msgpack").write_bytes(b"not read")
     for broken, msg in (
-        ({k: v for k, v in good.items() if k != "ddqn"}, "no 'ddqn'"),
-        ({k: v for k, v in good.items() if k != "bandwidth"}, "no 'bandwidth'"),
-        ({**good, "ddqn": {**good["ddqn"], "learning_rate": 1e-3}}, "unknown key in its 'ddqn' block: learning_rate"),
+        ({k: v for k, v in good.items() if k != "agent"}, "no 'agent'"),
+        ({k: v for k, v in good.items() if k != "env"}, "no 'env'"),
+        ({**good, "agent": {**good["agent"], "learning_rate": 1e-3}}, "unknown key in its agent config: learning_rate"),
         ([1, 2], "not a train.py run config"),
     ):
         (out / "config.json").write_text(json.dumps(broken))

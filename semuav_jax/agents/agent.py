@@ -20,9 +20,13 @@ import jax.numpy as jnp
 import numpy as np
 from flax import serialization
 
-from semuav_jax.agents.ddqn import DDQNConfig, QNetwork, agent_input, command, q_network
+from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.evaluate import seed_metrics
-from semuav_jax.agents.runs import check_weights, load_run, run_params, shipped_folder
+from semuav_jax.agents.network import QNetwork, q_network
+from semuav_jax.agents.policy import agent_input, greedy_policy
+from semuav_jax.agents.run_config import RunConfig
+from semuav_jax.agents.runs import check_weights, load_run, shipped_folder
+from semuav_jax.engine import command
 from semuav_jax.io import atomic_write
 from semuav_jax.keys import TEST_SEED, episode_keys
 from semuav_jax.params import EnvParams
@@ -33,20 +37,20 @@ FORMAT = "semuav-jax agent 1"
 
 @dataclass(frozen=True)
 class Agent:
-    """One trained seed: ``run`` is the run description (config.json of a train.py run: scenario,
-    command, DDQNConfig), ``weights`` the Q-network's parameters."""
+    """One trained seed: ``run`` is its ``RunConfig`` (config.json of its train.py run), ``weights``
+    the Q-network's parameters."""
 
-    run: dict
+    run: RunConfig
     weights: Any
 
     @property
     def config(self) -> DDQNConfig:
-        return DDQNConfig.from_dict(self.run["ddqn"])
+        return self.run.agent
 
     @property
     def params(self) -> EnvParams:
-        """The EnvParams the agent was trained with (B: the scenario's; the agent takes any B in its range)."""
-        return run_params(self.run)
+        """The EnvParams the agent was trained with (B: the run's; the agent takes any B in its range)."""
+        return self.run.env_params()
 
     @property
     def network(self) -> QNetwork:
@@ -55,9 +59,9 @@ class Agent:
     @classmethod
     def from_run(cls, folder, seed: int = 0) -> Agent:
         """Seed ``seed`` of a finished ``train.py`` run folder."""
-        run, _, nets = load_run(folder)
-        if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or not 0 <= seed < run["seeds"]:
-            raise ValueError(f"{folder} has seeds 0..{run['seeds'] - 1}, got seed={seed}")
+        run, nets = load_run(folder)
+        if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or not 0 <= seed < run.seeds:
+            raise ValueError(f"{folder} has seeds 0..{run.seeds - 1}, got seed={seed}")
         return cls(run, jax.tree.map(lambda w: jnp.asarray(w[seed]), nets))
 
     @classmethod
@@ -67,7 +71,8 @@ class Agent:
 
     def save(self, path) -> Path:
         """One file: the run description and the weights (msgpack), written atomically."""
-        blob = {"format": FORMAT, "run": json.dumps(self.run), "weights": jax.tree.map(np.asarray, self.weights)}
+        weights = jax.tree.map(np.asarray, self.weights)
+        blob = {"format": FORMAT, "run": json.dumps(self.run.to_dict()), "weights": weights}
         return atomic_write(path, serialization.msgpack_serialize(blob))
 
     @classmethod
@@ -83,6 +88,7 @@ class Agent:
             raise
         except Exception:
             raise ValueError(f"{path} is not a semuav-jax agent file (saved by Agent.save)") from None
+        run = RunConfig.from_dict(run, path)
         check_weights(run, blob["weights"], path)
         return cls(run, jax.tree.map(jnp.asarray, blob["weights"]))
 
@@ -95,7 +101,9 @@ class Agent:
         """The BS's command for one ``EnvState``: (action after the shield, acceleration (2,)) for
         ``semuav_jax.env.transition`` (jittable; greedy, epsilon = 0)."""
         params = self.params if params is None else params
-        return command(jnp.argmax(self.q_values(state, params)), state, params, self.config)
+        policy = greedy_policy(self.network, self.config)
+        sent, _, accel, _ = command(policy, self.weights, agent_input(state, params, self.config), state, params)
+        return sent, accel
 
 
 def evaluate(agent: Agent, params: EnvParams | None = None, episodes: int = 1000, seed: int = TEST_SEED) -> dict:

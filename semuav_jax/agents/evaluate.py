@@ -3,59 +3,22 @@ vmapped program over episodes, the metrics of MODEL.md section 8 plus ``shield_s
 
 from __future__ import annotations
 
-import functools
-from typing import Any
-
 import jax
 import jax.numpy as jnp
 import numpy as np
-from flax import struct
 
-from semuav_jax.agents.ddqn import DDQNConfig, agent_input, command
+from semuav_jax.agents.config import DDQNConfig
+from semuav_jax.agents.policy import greedy_policy
 from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import rollout
 from semuav_jax.sharding import gather, shard_episodes
-
-
-@struct.dataclass
-class AgentState:
-    """Policy state of one evaluation episode: the network weights and the shield's count."""
-
-    net: Any
-    shielded: jax.Array
-    slots: jax.Array
-
-    def episode_metrics(self) -> dict:
-        """shield_share (MODEL.md section 8): share of the episode's slots in which the shield replaced the action."""
-        return {"shield_share": self.shielded / jnp.maximum(self.slots, 1)}
-
-
-def agent_state(net_params) -> AgentState:
-    return AgentState(net=net_params, shielded=jnp.zeros((), jnp.int32), slots=jnp.zeros((), jnp.int32))
-
-
-@functools.cache
-def greedy_policy(network, config: DDQNConfig):
-    """Rollout policy ``(AgentState, env_state, params) -> (accel, AgentState)``: argmax Q of the
-    agent's input, through the BS's shield (unless ``config.shield_margin`` is None)."""
-
-    def policy(ps: AgentState, state, params: EnvParams):
-        chosen = jnp.argmax(network.apply(ps.net, agent_input(state, params, config)))
-        sent, accel = command(chosen, state, params, config)
-        live = ~state.done
-        ps = ps.replace(shielded=ps.shielded + (live & (sent != chosen)), slots=ps.slots + live)
-        return accel, ps
-
-    return policy
 
 
 def evaluate_agent(network, net_params, config: DDQNConfig, keys, params: EnvParams, trace: bool = False):
     """Metrics (dict of (E,) NumPy arrays, with ``shield_share``) of the greedy policy of ``net_params``
     on the episodes ``keys``; with ``trace``, also the per-slot trace of ``rollout``."""
     validate_params(params)
-    metrics, tr = rollout(
-        greedy_policy(network, config), keys, params, agent_state(net_params), trace=trace, state_axes=None
-    )
+    metrics, tr = rollout(greedy_policy(network, config), keys, params, net_params, trace=trace, state_axes=None)
     metrics = jax.tree.map(np.asarray, metrics)
     return (metrics, jax.tree.map(np.asarray, tr)) if trace else metrics
 
@@ -74,7 +37,7 @@ def seed_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams, ban
     policy = greedy_policy(network, config)
 
     def at(net, b, k):  # the keys are an argument: a jit may not close over another process's shards
-        return rollout(policy, k, params.replace(B=b), agent_state(net), state_axes=None)[0]
+        return rollout(policy, k, params.replace(B=b), net, state_axes=None)[0]
 
     run = jax.jit(jax.vmap(jax.vmap(at, (None, 0, None)), (0, None, None)))
     B = jnp.asarray(bandwidths, jnp.float32)

@@ -174,18 +174,16 @@ def _evaluate(args, results, curves, t0) -> int:
     from tqdm import tqdm
 
     from semuav_jax import figures
-    from semuav_jax.agents.ddqn import q_network
+    from semuav_jax.agents.network import q_network
     from semuav_jax.agents.runs import MODEL_FILE, load_run
-    from semuav_jax.agents.scenarios import scenario_params
     from semuav_jax.experiments import fig2
     from semuav_jax.provenance import file_hash, provenance
 
     out = results.path
     try:
         folder = agent_folder(args, out)
-        run, config, nets = load_run(folder)
-        params = scenario_params("random", curves, reward_mode=run.get("reward_mode", "gain"), B=25e3)
-        fixed = scenario_params("fixed", curves, reward_mode=run.get("reward_mode", "gain"), B=25e3)
+        run, nets = load_run(folder)  # the agent flies in the env it was trained in (its RunConfig)
+        config, params, fixed = run.agent, run.env_params("random", curves), run.env_params("fixed", curves)
     except (UsageError, ValueError, FileNotFoundError, OSError) as e:
         print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
         return 2
@@ -209,7 +207,7 @@ def _evaluate(args, results, curves, t0) -> int:
         r = fig2.run(network, nets, config, params, fixed, args.grid, args.workers, stages=stages)
     r.update(
         agent=str(folder),
-        agent_command=run.get("command"),
+        agent_command=run.command,
         train_s=train_s,
         eval_s=time.time() - t0 - train_s,
         devices=jax.device_count(),
@@ -236,9 +234,8 @@ def _animate(args) -> int:
     """--animate GIF: seed 0 of the agent, greedy and TSP at their v_b* (the agent folder's eval.json,
     else tuned here on --validation-layouts) and the planner, one episode each on the paper layout."""
     from baselines.report import tune
-    from semuav_jax.agents.ddqn import q_network
+    from semuav_jax.agents.network import q_network
     from semuav_jax.agents.runs import load_run, shipped_folder
-    from semuav_jax.agents.scenarios import scenario_params
     from semuav_jax.curves import load_curves
     from semuav_jax.experiments.animation import (
         animate,
@@ -252,10 +249,9 @@ def _animate(args) -> int:
     try:
         check_writable_folder(Path(args.animate).parent, "--animate")
         folder = Path(args.agent) if args.agent else shipped_folder()
-        run, config, nets = load_run(folder)
+        run, nets = load_run(folder)
         curves = load_curves(args.curves) if args.curves else None
-        kw = {"reward_mode": run.get("reward_mode", "gain"), "B": PANEL_B}
-        fixed = scenario_params("fixed", curves, **kw)
+        config, fixed = run.agent, run.env_params("fixed", curves).replace(B=PANEL_B)
     except (ValueError, FileNotFoundError, OSError) as e:
         print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
         return 2
@@ -263,7 +259,10 @@ def _animate(args) -> int:
     if tuned is None:
         print(f"tuning v_b* at {PANEL_B / 1e3:g} kHz on {args.grid['validation_layouts']} validation layouts")
         t = tune(
-            scenario_params("random", curves, **kw), (PANEL_B,), args.grid["validation_layouts"], workers=args.workers
+            run.env_params("random", curves).replace(B=PANEL_B),
+            (PANEL_B,),
+            args.grid["validation_layouts"],
+            workers=args.workers,
         )
         tuned = {n: t[n]["v_star"][0] for n in ("greedy", "tsp")} | {
             n: tuple(t[n]["knobs"][0]) for n in ("greedy-dwell", "tsp-dwell")

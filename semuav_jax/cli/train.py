@@ -1,59 +1,31 @@
 """Train the BS's DDQN from scratch (docs/ddqn.md): ``python train.py`` trains the default agent
-(3 seeds vmapped in one program) and compares every seed with the tuned baselines and the planner
-on 1000 test layouts at B = 5, 20, 25, 40 kHz; ``--preset paper`` trains the paper's configuration.
+(3 seeds vmapped in one program) and compares every seed with the tuned references on 1000 test
+layouts at B = 5, 20, 25, 40 kHz; ``--preset paper`` trains the paper's configuration.
 
-The training itself is one compiled program per segment (``semuav_jax.agents.ddqn``); this
-script splits it into host-level segments for progress, checkpoints and resume, and writes the
-run folder (``semuav_jax.agents.runs``).
+The options are derived from the run's config (``agents.run_config.RunConfig``: env overrides,
+the agent's ``DDQNConfig``, run options); the config is written whole into the run folder and
+replayed on ``--resume`` and by every reader. The training loop is ``cli/train_run.py``.
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
-import io
+import dataclasses
+import json
 import sys
-import time
 from pathlib import Path
 
 from semuav_jax import distributed
-from semuav_jax.agents.runs import (
-    CKPT_FILE,
-    CONFIG_FILE,
-    CURVE_FILE,
-    EVAL_FILE,
-    EVAL_MD,
-    METRICS_FILE,
-    MODEL_FILE,
-    ddqn_config,
-)
 from semuav_jax.cli import interruptible
-from semuav_jax.cli.train_folder import (
-    INT_COLUMNS,
-    NONE,
-    RUN_OPTIONS,
-    SCENARIO,
-    UsageError,
-    check_run,
-    prepare_folder,
-    read_metrics,
-    saved_config,
-)
-from semuav_jax.runfolder import RunFolder
+from semuav_jax.cli.train_folder import NONE, UsageError, prepare_folder, saved_config
 
-METRIC_COLUMNS = (
-    "seed",
-    "chunk",
-    "env_steps",
-    "epsilon",
-    "episodes",
-    "loss",
-    "mean_psnr",
-    "return",
-    "arrived",
-    "coverage",
-    "shield_share",
-)
+# the env overrides with an option of their own (any other: --env KEY=VALUE); option -> make_params key
+ENV_OPTIONS = {
+    "reward_mode": ("reward_mode", {"choices": ("paper", "gain")}, "reward of MODEL.md section 4"),
+    "bandwidth": ("B", {"type": float}, "B in Hz when bandwidth_range is none, and of the run's env"),
+    "kappa_c": ("kappa_c", {"type": float}, "weight of the PSNR gain in the 'gain' reward"),
+    "r_g": ("r_g", {"type": float}, "arrival reward of eq. 4.4"),
+}
 
 
 def _option_type(default):
@@ -81,10 +53,24 @@ def _none_or(kind):
     return parse
 
 
-def parse_args(argv=None):
-    import dataclasses
+def _shown(default) -> str:
+    values = default if isinstance(default, tuple) else (default,)
+    return "none" if default is None else " ".join(f"{x:g}" if isinstance(x, float) else str(x) for x in values)
 
-    from semuav_jax.agents.ddqn import PRESETS, DDQNConfig
+
+def _env_pair(text: str):
+    key, sep, value = text.partition("=")
+    if not sep or not key:
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE (a make_params override), got {text!r}")
+    try:
+        return key, json.loads(value)
+    except ValueError:
+        return key, value
+
+
+def parse_args(argv=None):
+    from semuav_jax.agents.config import DDQNConfig
+    from semuav_jax.agents.run_config import PRESETS, RunConfig
 
     p = argparse.ArgumentParser(
         description="Train the BS's DDQN from scratch (docs/ddqn.md). Unset options come "
@@ -93,83 +79,39 @@ def parse_args(argv=None):
     p.add_argument(
         "--preset",
         choices=sorted(PRESETS),
-        default="default",
-        help="default: waypoint actions, one agent for every bandwidth; paper: the paper's configuration",
-    )
-    p.add_argument(
-        "--scenario",
-        choices=("fixed", "random"),
         default=None,
-        help=f"fixed paper layout or a new random layout per episode (default: {SCENARIO['scenario']})",
+        help="default: waypoint actions, one agent for every B; paper: the paper's configuration",
     )
+    env = PRESETS["default"]["env"]
+    for name, (key, kind, text) in ENV_OPTIONS.items():
+        default = f" (default: {_shown(env[key])})" if key in env else ""
+        p.add_argument("--" + name.replace("_", "-"), default=None, help=text + default, **kind)
     p.add_argument(
-        "--reward-mode",
-        choices=("paper", "gain"),
+        "--env",
+        type=_env_pair,
+        action="append",
         default=None,
-        help=f"reward of MODEL.md section 4 (default: {SCENARIO['reward_mode']}; paper preset: paper)",
+        metavar="KEY=VALUE",
+        help="any other make_params override of the run's env, e.g. --env K=300 (repeatable)",
     )
-    p.add_argument(
-        "--bandwidth",
-        type=float,
-        default=None,
-        help=f"B in Hz when bandwidth_range is none, and for --eval-episodes of such an agent (default: {SCENARIO['bandwidth']:g})",
-    )
-    p.add_argument(
-        "--kappa-c",
-        type=float,
-        default=None,
-        help=f"weight of the PSNR gain in the 'gain' reward (default: {SCENARIO['kappa_c']:g})",
-    )
-    p.add_argument(
-        "--r-g",
-        type=float,
-        default=None,
-        help="arrival reward of eq. 4.4 (default: 0, since the shield guarantees arrival and a discounted "
-        "bonus only pays for arriving early, docs/ddqn.md; paper preset: 500)",
-    )
-    d = DDQNConfig()
-    for f in dataclasses.fields(DDQNConfig):
-        default = getattr(d, f.name)
-        shown = (
-            "none"
-            if default is None
-            else " ".join(
-                f"{x:g}" if isinstance(x, float) else str(x)
-                for x in (default if isinstance(default, tuple) else (default,))
+    for cls, instance in ((DDQNConfig, DDQNConfig()), (RunConfig, RunConfig())):
+        for f in dataclasses.fields(cls):
+            if "help" not in f.metadata:
+                continue
+            default = getattr(instance, f.name)
+            kind = {"type": f.metadata["type"]} if "type" in f.metadata else _option_type(default)
+            kind |= {"choices": f.metadata["choices"]} if "choices" in f.metadata else {}
+            p.add_argument(
+                "--" + f.name.replace("_", "-"),
+                default=None,
+                help=f"{f.metadata['help']} (default: {_shown(default)})",
+                **kind,
             )
-        )
-        p.add_argument(
-            "--" + f.name.replace("_", "-"),
-            default=None,
-            help=f"{f.metadata['help']} (default: {shown})",
-            **_option_type(default),
-        )
-    for name, (default, text) in RUN_OPTIONS.items():
-        p.add_argument("--" + name, type=type(default), default=None, help=f"{text} (default: {default})")
     p.add_argument(
         "--max-segments",
         type=int,
         default=None,
         help="stop after this many segments in this session (continue later with --resume)",
-    )
-    p.add_argument(
-        "--eval-episodes",
-        type=int,
-        default=1000,
-        help="test layouts for the comparison with the tuned baselines and the planner (0: skip)",
-    )
-    p.add_argument(
-        "--validation-episodes",
-        type=int,
-        default=500,
-        help="validation layouts that choose the baselines' tuned speed v_b* (default: %(default)s)",
-    )
-    p.add_argument("--workers", type=int, default=2, help="processes for OR-Tools and the planner in the evaluation")
-    p.add_argument(
-        "--curves",
-        type=str,
-        default=None,
-        help="PSNR curves .npz, or 'synthetic' for the stand-in test curves (default: the shipped DeepJSCC curves)",
     )
     p.add_argument("--out", type=str, default=None, help="run folder (default: runs/ddqn_<preset>)")
     g = p.add_mutually_exclusive_group()
@@ -179,81 +121,52 @@ def parse_args(argv=None):
     args = p.parse_args(argv)
     args.command = " ".join(["python train.py", *(sys.argv[1:] if argv is None else argv)])
     if args.out is None:
-        args.out = f"runs/ddqn_{args.preset}"
-    for name in ("seeds", "segments", "max_segments", "workers", "validation_episodes"):
-        if getattr(args, name) is not None and getattr(args, name) < 1:
-            raise UsageError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
-    if args.eval_episodes < 0 or args.eval_episodes == 1:
-        raise UsageError(
-            f"--eval-episodes must be 0 (no comparison) or >= 2 (its intervals need two), got {args.eval_episodes}"
-        )
+        args.out = f"runs/ddqn_{args.preset or 'default'}"
+    if args.max_segments is not None and args.max_segments < 1:
+        raise UsageError(f"--max-segments must be >= 1, got {args.max_segments}")
     return args
 
 
-def run_config(args) -> dict:
-    """The JSON-able description of a run (written to config.json; read back on --resume)."""
-    import dataclasses
+def given_options(args) -> dict:
+    """The config values given on the command line: {"env": {...}, "agent": {...}, run option: value}."""
+    from semuav_jax.agents.config import DDQNConfig
+    from semuav_jax.agents.run_config import RunConfig
 
-    from semuav_jax.agents.ddqn import PRESETS, DDQNConfig, preset_config
-
-    preset = PRESETS[args.preset]
-    names = {f.name for f in dataclasses.fields(DDQNConfig)}
-    given = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
-    for k, v in given.items():
+    def value(name):
+        v = getattr(args, name)
         if isinstance(v, list) and NONE in v and len(v) > 1:
-            raise UsageError(f"--{k.replace('_', '-')}: give either none or numbers, got {' '.join(map(str, v))}")
-    given = {k: None if v == NONE or v == [NONE] else tuple(v) if isinstance(v, list) else v for k, v in given.items()}
-    cfg = preset_config(args.preset, **given)
-    scenario = {k: getattr(args, k) if getattr(args, k) is not None else preset.get(k, v) for k, v in SCENARIO.items()}
-    run = {k: getattr(args, k) if getattr(args, k) is not None else v for k, (v, _) in RUN_OPTIONS.items()}
-    return {
-        "preset": args.preset,
-        **scenario,
-        **run,
-        "curves": args.curves,
-        "command": args.command,
-        "ddqn": cfg.to_dict(),
+            raise UsageError(f"--{name.replace('_', '-')}: give either none or numbers, got {' '.join(map(str, v))}")
+        return None if v == NONE or v == [NONE] else tuple(v) if isinstance(v, list) else v
+
+    agent = {f.name: value(f.name) for f in dataclasses.fields(DDQNConfig) if getattr(args, f.name) is not None}
+    run = {
+        f.name: value(f.name)
+        for f in dataclasses.fields(RunConfig)
+        if "help" in f.metadata and getattr(args, f.name) is not None
     }
+    env = dict(args.env or [])
+    env |= {key: getattr(args, name) for name, (key, _, _) in ENV_OPTIONS.items() if getattr(args, name) is not None}
+    return {"env": env, "agent": agent, **run}
 
 
-def load_run_config(args) -> dict:
-    """The run's config: read back from the run folder on --resume, else built from the options."""
-    if args.resume:
-        return saved_config(args)
-    cfg = run_config(args)
-    check_run(cfg, "")
+def run_config(args):
+    """The ``RunConfig`` of a new run: the preset with the options given (an error names the option)."""
+    from semuav_jax.agents.config import DDQNConfig
+    from semuav_jax.agents.run_config import RunConfig
+
+    try:
+        cfg = RunConfig.from_preset(args.preset or "default", command=args.command, **given_options(args))
+        cfg.env_params()  # every override and the curves checked before anything is written
+    except (ValueError, FileNotFoundError) as e:
+        name, _, rest = str(e).partition(" ")
+        options = {f.name for cls in (DDQNConfig, RunConfig) for f in dataclasses.fields(cls)}
+        raise UsageError(f"--{name.replace('_', '-')} {rest}" if name in options else str(e)) from None
     return cfg
 
 
-def plot_curves(rows, path: Path, reference: dict | None = None) -> None:
-    import matplotlib.pyplot as plt
-
-    from semuav_jax.figures import save_figure
-
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
-    for seed in sorted({r["seed"] for r in rows}):
-        rs = [r for r in rows if r["seed"] == seed]
-        x = [r["env_steps"] for r in rs]
-        axes[0].plot(x, [r["mean_psnr"] for r in rs], label=f"seed {seed}")
-        axes[1].plot(x, [r["return"] for r in rs])
-    for name, value in (reference or {}).items():
-        axes[0].axhline(value, ls="--", color="gray")
-        axes[0].annotate(name, (0, value), fontsize=8, color="gray")
-    axes[0].set(
-        xlabel="environment steps",
-        ylabel="mean PSNR of finished episodes (dB)",
-        title="training (ε-greedy, over the training bandwidths)",
-    )
-    axes[1].set(xlabel="environment steps", ylabel="episode return")
-    axes[0].legend(fontsize=8)
-    save_figure(fig, path, dpi=110)
-
-
-def segment_lengths(num_chunks: int, segments: int, done: int):
-    """Chunks per remaining segment: equal lengths (one compilation) plus at most one remainder."""
-    seg = -(-num_chunks // segments)
-    left = num_chunks - done
-    return [seg] * (left // seg) + ([left % seg] if left % seg else [])
+def load_run_config(args):
+    """The run's config: read back from the run folder on --resume, else built from the options."""
+    return saved_config(args, given_options(args)) if args.resume else run_config(args)
 
 
 def main(argv=None) -> int:
@@ -266,154 +179,27 @@ def main(argv=None) -> int:
 
 
 def _main(argv=None) -> int:
+    from semuav_jax.runfolder import RunFolder
+
     try:
         args = parse_args(argv)
         distributed.initialize(args)
         cfg = load_run_config(args)
-    except (UsageError, ValueError, distributed.DistributedError) as e:
-        print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
-        return 2
-
-    from semuav_jax.agents.runs import run_params
-
-    out = Path(args.out)
-    try:
-        params = run_params(cfg)
-        config = ddqn_config(cfg, out / CONFIG_FILE)
         if distributed.is_main():  # of several processes, process 0 writes the run folder
             folder = prepare_folder(args, cfg)
             distributed.barrier("run folder claimed")
         else:
             distributed.barrier("run folder claimed")
             folder = RunFolder.view(args.out)
-    except (UsageError, ValueError, FileNotFoundError) as e:
+    except (UsageError, ValueError, FileNotFoundError, distributed.DistributedError) as e:
         print(f"{Path(sys.argv[0]).name}: error: {e}", file=sys.stderr)
         return 2
+    from semuav_jax.cli.train_run import train_run
+
     try:
-        return _train(args, cfg, params, config, folder)
+        return train_run(cfg, folder, args.resume, args.max_segments)
     finally:
         folder.release()
-
-
-def _train(args, cfg, params, config, folder) -> int:
-    import jax
-    import numpy as np
-    from flax import serialization
-    from tqdm import tqdm
-
-    from semuav_jax.agents.ddqn import make_train
-
-    out = folder.path
-    bar = None
-
-    def progress(chunk):  # from inside the compiled segment, once per seed and chunk
-        if bar is not None and int(chunk) > bar.n:
-            bar.update(int(chunk) - bar.n)
-
-    trainer = make_train(config, params, progress=progress)
-    keys = jax.random.split(jax.random.PRNGKey(cfg["seed"]), cfg["seeds"])
-    init = jax.jit(jax.vmap(trainer.init))
-    template = jax.eval_shape(init, keys)
-    state, rows = None, []
-    if args.resume and not (out / CKPT_FILE).is_file():  # stopped before its first checkpoint
-        print(f"{out} has no checkpoint yet: starting its run from chunk 0")
-    elif args.resume:
-        try:
-            state = serialization.from_bytes(template, (out / CKPT_FILE).read_bytes())
-            if jax.tree.structure(state) != jax.tree.structure(template) or any(
-                np.shape(a) != b.shape for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(template))
-            ):
-                raise ValueError("its arrays do not match config.json")
-            rows = read_metrics(out, int(np.asarray(state.chunk)[0]))
-        except Exception as e:  # noqa: BLE001 - flax raises any kind for a file that is not this checkpoint
-            text = (
-                e
-                if isinstance(e, UsageError)
-                else f"--resume: {out / CKPT_FILE} is unreadable or not this run's checkpoint ({e})"
-            )
-            print(f"{Path(sys.argv[0]).name}: error: {text}", file=sys.stderr)
-            return 2
-        print(f"resuming {out} at chunk {int(np.asarray(state.chunk)[0])} / {config.num_chunks}")
-
-    t0 = time.time()
-    if state is None:
-        state = init(keys)
-    done = int(np.asarray(state.chunk)[0])
-    runs = {}
-    bar = tqdm(total=config.num_chunks, initial=done, unit="chunk", desc="training", dynamic_ncols=True)
-    for n in segment_lengths(config.num_chunks, cfg["segments"], done)[: args.max_segments]:
-        if n not in runs:
-            runs[n] = jax.jit(jax.vmap(lambda s, n=n: trainer.run(s, n)))
-        state, metrics = runs[n](state)
-        metrics = jax.tree.map(np.asarray, metrics)
-        if not np.isfinite(metrics["loss"]).all() or not all(
-            np.isfinite(w).all() for w in jax.tree.leaves(state.params)
-        ):
-            bar.close()
-            kept = f"keeps its checkpoint at chunk {done}" if (out / CKPT_FILE).is_file() else "has no checkpoint"
-            print(
-                f"{Path(sys.argv[0]).name}: error: training diverged (non-finite loss or weights) in chunks "
-                f"{done + 1}..{done + n}; {out} {kept} and no model: start again with other options (e.g. a smaller "
-                "--lr) and --overwrite",
-                file=sys.stderr,
-            )
-            return 2
-        for s in range(cfg["seeds"]):
-            for c in range(n):
-                rows.append(
-                    {
-                        "seed": s,
-                        "chunk": done + c + 1,
-                        **{
-                            k: int(metrics[k][s, c]) if k in INT_COLUMNS else float(metrics[k][s, c])
-                            for k in METRIC_COLUMNS[2:]
-                        },
-                    }
-                )
-        done += n
-        if not distributed.is_main():
-            continue
-        text = io.StringIO()
-        w = csv.DictWriter(text, METRIC_COLUMNS)
-        w.writeheader()
-        w.writerows({k: r[k] for k in METRIC_COLUMNS} for r in rows)
-        folder.write(METRICS_FILE, text.getvalue().encode())  # before the checkpoint: see resume
-        folder.write(CKPT_FILE, serialization.to_bytes(state))
-        plot_curves(rows, folder.record(CURVE_FILE))
-        bar.set_postfix(psnr=f"{metrics['mean_psnr'][:, -1].mean():.2f}", eps=f"{metrics['epsilon'][0, -1]:.2f}")
-        bar.update(done - bar.n)  # the callbacks moved it within the segment
-    bar.close()
-    if done < config.num_chunks:
-        print(f"stopped at chunk {done} / {config.num_chunks}; continue with --resume --out {out}")
-        return 0
-    wall = time.time() - t0
-    folder.write(MODEL_FILE, serialization.to_bytes(state.params))  # process 0 alone writes (a view elsewhere)
-    distributed.barrier("weights written")  # the evaluation below and eval.py read them in every process
-    print(
-        f"training: {config.num_chunks * config.steps_per_chunk * config.num_envs * cfg['seeds']:,} env steps "
-        f"in {wall:.0f} s (this session)"
-    )
-
-    if args.eval_episodes:
-        from semuav_jax.experiments.learned import evaluate_run, markdown
-
-        folder.record(EVAL_FILE), folder.record(EVAL_MD)
-        report = evaluate_run(
-            out,
-            args.eval_episodes,
-            args.validation_episodes,
-            args.workers,
-            log=tqdm.write,
-            extra={"train_wall_s": wall},
-        )
-        if not distributed.is_main():
-            return 0
-        print(markdown(report))
-        if config.bandwidth_range is None:  # one bandwidth: its references are comparable with the curve
-            ref = {k: v["mean_psnr"] for k, v in report["rows"][-1]["references"].items()}
-            plot_curves(rows, out / CURVE_FILE, ref)
-    print(f"run folder: {out}")
-    return 0
 
 
 if __name__ == "__main__":

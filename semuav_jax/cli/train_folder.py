@@ -7,7 +7,6 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
-import math
 from pathlib import Path
 
 from semuav_jax.agents.runs import (
@@ -16,73 +15,30 @@ from semuav_jax.agents.runs import (
     METRICS_FILE,
     MODEL_FILE,
     RUN_FILES,
-    ddqn_config,
 )
 from semuav_jax.runfolder import RunFolder
 
-SCENARIO = {"scenario": "random", "reward_mode": "gain", "bandwidth": 25e3, "kappa_c": 10.0, "r_g": 0.0}
-RUN_OPTIONS = {
-    "seeds": (3, "independent agents trained in one program"),
-    "seed": (0, "base random seed"),
-    "segments": (50, "host-level segments (progress + checkpoint each)"),
-}
 INT_COLUMNS = ("seed", "chunk", "env_steps", "episodes")
 NONE = "none"  # an option set to none (e.g. --shield-margin none), unlike one not given (None)
-SEED_RANGE = 2**32  # jax.random.PRNGKey aliases seeds modulo 2**32
 
 
 class UsageError(Exception):
     """A bad option or run folder: reported as one line, exit code 2."""
 
 
-def check_run(cfg: dict, where: str) -> None:
-    """UsageError (one line) unless the run description ``cfg`` (built from the options, or read from
-    config.json at ``where``) holds values the command line would accept."""
-
-    def bad(name, v, want):
-        raise UsageError(f"{where}{': ' if where else ''}{name} must be {want}, got {v!r}")
-
-    for name in ("seeds", "segments"):
-        v = cfg.get(name)
-        if not isinstance(v, int) or isinstance(v, bool) or v < 1:
-            bad(name, v, "an integer >= 1")
-    if not isinstance(cfg.get("seed"), int) or isinstance(cfg["seed"], bool) or not 0 <= cfg["seed"] < SEED_RANGE:
-        bad("seed", cfg.get("seed"), "an integer in [0, 2**32) (random keys alias seeds modulo 2**32)")
-    if cfg.get("scenario") not in ("fixed", "random"):
-        bad("scenario", cfg.get("scenario"), "'fixed' or 'random'")
-    if cfg.get("reward_mode") not in ("paper", "gain"):
-        bad("reward_mode", cfg.get("reward_mode"), "'paper' or 'gain'")
-    for name, positive in (("bandwidth", True), ("kappa_c", False), ("r_g", False)):
-        v = cfg.get(name)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or (positive and v <= 0):
-            bad(name, v, "a finite number" + (" > 0" if positive else ""))
-    if cfg.get("curves") is not None and not isinstance(cfg["curves"], str):
-        bad("curves", cfg["curves"], "a file name, 'synthetic' or null")
-    try:
-        ddqn_config(cfg, where or "the options")
-    except ValueError as e:
-        raise UsageError(str(e)) from None
-
-
-def resume_clashes(args, saved: dict) -> list[str]:
-    """The options given with --resume whose value differs from the saved run's, as 'option value (saved x)'."""
-    import dataclasses
-
-    from semuav_jax.agents.ddqn import DDQNConfig
-
-    ddqn = {f.name for f in dataclasses.fields(DDQNConfig)}
+def resume_clashes(given: dict, saved) -> list[str]:
+    """The options given with --resume (``cli.train.given_options``) whose value differs from the
+    saved run's ``RunConfig``, as 'option value (saved x)'."""
     norm = lambda x: json.loads(json.dumps(x))
     clashes = []
-    for name in (*ddqn, *SCENARIO, *RUN_OPTIONS, "curves"):
-        new = getattr(args, name)  # compared as given: not checked against the other options (they are the saved ones)
-        if new is None:
-            continue
-        new = None if new == NONE or new == [NONE] else new
-        old = saved["ddqn"].get(name) if name in ddqn else saved.get(name)
+    parts = [(f"--env {k}=", v, saved.env.get(k)) for k, v in given["env"].items()]
+    parts += [(f"--{k.replace('_', '-')} ", v, getattr(saved.agent, k)) for k, v in given["agent"].items()]
+    parts += [
+        (f"--{k.replace('_', '-')} ", v, getattr(saved, k)) for k, v in given.items() if k not in ("env", "agent")
+    ]
+    for name, new, old in parts:  # compared as given: not checked against the other options (they are the saved ones)
         if norm(new) != norm(old):
-            clashes.append(f"--{name.replace('_', '-')} {new} (saved {old})")
-    if args.preset != "default" and args.preset != saved.get("preset"):
-        clashes.append(f"--preset {args.preset} (saved {saved.get('preset')})")
+            clashes.append(f"{name}{new} (saved {old})")
     return clashes
 
 
@@ -90,9 +46,11 @@ def _config_hash(text: bytes) -> str:
     return hashlib.sha256(text).hexdigest()
 
 
-def saved_config(args) -> dict:
-    """The config.json of the run in --out, for --resume: parsed, re-validated as strictly as the
-    command line, unedited since the run wrote it, and agreeing with the options given."""
+def saved_config(args, given: dict):
+    """The ``RunConfig`` of the run in --out, for --resume: parsed, re-validated as strictly as the
+    command line, unedited since the run wrote it, and agreeing with the options ``given``."""
+    from semuav_jax.agents.runs import read_config
+
     out = Path(args.out)
     p = out / CONFIG_FILE
     if not p.is_file():
@@ -101,14 +59,10 @@ def saved_config(args) -> dict:
             + ("; the same command without --resume starts it" if (out / ".semuav.json").is_file() else "")
         )
     try:
-        saved = json.loads(p.read_text())
-    except ValueError:
-        raise UsageError(f"--resume: {p} is not a train.py run config") from None
-    needed = ("ddqn", "scenario", "reward_mode", "bandwidth", "kappa_c", *RUN_OPTIONS)
-    missing = [k for k in needed if not isinstance(saved, dict) or k not in saved]
-    if missing:
-        raise UsageError(f"--resume: {p} is not a train.py run config (no {', '.join(map(repr, missing))})")
-    check_run(saved, f"--resume: {p}")
+        saved = read_config(p)
+        saved.env_params()
+    except (ValueError, FileNotFoundError) as e:
+        raise UsageError(f"--resume: {e}") from None
     try:
         marker = json.loads((out / ".semuav.json").read_text())
     except (OSError, ValueError):
@@ -119,13 +73,15 @@ def saved_config(args) -> dict:
             f"--resume: {p} was edited after the run wrote it; its checkpoint was trained with the "
             "config it had then: restore it, or start a new run (--overwrite or another --out)"
         )
-    clashes = resume_clashes(args, saved)
+    clashes = resume_clashes(given, saved)
+    if args.preset is not None and args.preset != saved.preset:
+        clashes.append(f"--preset {args.preset} (saved {saved.preset})")
     if clashes:
         raise UsageError(f"--resume continues the run saved in {out}, whose config differs: {', '.join(clashes)}")
     return saved
 
 
-def prepare_folder(args, cfg: dict) -> RunFolder:
+def prepare_folder(args, cfg) -> RunFolder:
     """Claim the run folder (locked for this process) and, for a new run, write config.json. A
     folder of ours is refused without --resume / --overwrite unless it holds no checkpoint or model
     yet (a run stopped before its first checkpoint starts again)."""
@@ -140,7 +96,7 @@ def prepare_folder(args, cfg: dict) -> RunFolder:
         folder.release()
         raise UsageError(f"run folder {out} holds a run; pass --resume to continue it or --overwrite to replace it")
     folder.remove_listed()  # a run stopped before its first checkpoint: nothing of it to keep
-    text = json.dumps(cfg, indent=2).encode()
+    text = json.dumps(cfg.to_dict(), indent=2).encode()
     folder.marker["config_sha256"] = _config_hash(text)
     folder.write(CONFIG_FILE, text)
     return folder

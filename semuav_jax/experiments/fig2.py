@@ -22,8 +22,9 @@ from baselines.dwell import DWELL_POLICIES, init_dwell
 from baselines.planner import PlanState, make_plans, planner
 from baselines.policies import POLICIES
 from baselines.report import flights, tune
-from semuav_jax.agents.ddqn import DDQNConfig
-from semuav_jax.agents.evaluate import agent_state, greedy_policy, seed_metrics
+from semuav_jax.agents.config import DDQNConfig
+from semuav_jax.agents.evaluate import seed_metrics
+from semuav_jax.agents.policy import greedy_policy
 from semuav_jax.experiments.stages import Stages
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams
@@ -92,7 +93,7 @@ def traced_runs(
     for s in range(jax.tree.leaves(nets)[0].shape[0]):
         net = jax.tree.map(lambda x: x[s], nets)
         runs[f"agent seed {s}"] = rollout(
-            greedy_policy(network, config), keys, params, agent_state(net), trace=True, state_axes=None
+            greedy_policy(network, config), keys, params, net, trace=True, state_axes=None
         )
     ranks = {
         "greedy": np.broadcast_to(np.arange(params.N, dtype=np.int32), (len(keys), params.N)),

@@ -14,8 +14,9 @@ import dataclasses
 import numpy as np
 
 from baselines.report import BANDWIDTHS, flights, setting, summary, tune
-from semuav_jax.agents.ddqn import DDQNConfig, q_network
+from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.evaluate import seed_metrics
+from semuav_jax.agents.network import q_network
 from semuav_jax.distributed import is_main
 from semuav_jax.experiments.fig2 import shared_plans
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
@@ -154,10 +155,16 @@ def markdown(r: dict) -> str:
 
 
 def evaluate_run(
-    folder, episodes: int = 1000, validation_episodes: int = 500, workers: int = 2, log=print, extra: dict | None = None
+    folder,
+    episodes: int | None = None,
+    validation_episodes: int | None = None,
+    workers: int | None = None,
+    log=print,
+    extra: dict | None = None,
 ) -> dict:
-    """:func:`compare` for the seeds of a finished ``train.py`` run folder; writes its eval.json and
-    eval.md (the folder claimed and locked meanwhile, ``semuav_jax.runfolder``)."""
+    """:func:`compare` for the seeds of a finished ``train.py`` run folder in its own env (its
+    ``RunConfig``; the counts default to the run's); writes its eval.json and eval.md (the folder
+    claimed and locked meanwhile, ``semuav_jax.runfolder``)."""
     from semuav_jax.agents.runs import RUN_FILES, load_run
     from semuav_jax.runfolder import RunFolder
 
@@ -173,16 +180,18 @@ def evaluate_run(
 def _evaluate_run(run_folder, episodes, validation_episodes, workers, log, extra) -> dict:
     import json
 
-    from semuav_jax.agents.runs import EVAL_FILE, EVAL_MD, load_run, run_params
+    from semuav_jax.agents.runs import EVAL_FILE, EVAL_MD, load_run
     from semuav_jax.provenance import provenance
 
     folder = run_folder.path
-    run, config, nets = load_run(folder)
-    params = run_params(run)
+    run, nets = load_run(folder)
+    params, config = run.env_params(), run.agent
     network = q_network(params, config)
-    bandwidths = BANDWIDTHS if config.bandwidth_range is not None else (run["bandwidth"],)
-    r = compare(network, nets, config, params, bandwidths, episodes, validation_episodes, workers, log=log)
-    r.update(agent_command=run.get("command"), **(extra or {}), **provenance(params))
+    bandwidths = BANDWIDTHS if config.bandwidth_range is not None else (float(params.B),)
+    pick = lambda given, saved: saved if given is None else given
+    counts = pick(episodes, run.eval_episodes), pick(validation_episodes, run.validation_episodes)
+    r = compare(network, nets, config, params, bandwidths, *counts, pick(workers, run.workers), log=log)
+    r.update(agent_command=run.command, **(extra or {}), **provenance(params))
     if is_main():  # of several processes, process 0 writes
         run_folder.write(EVAL_FILE, json.dumps(r, indent=2).encode())
         run_folder.write(EVAL_MD, (markdown(r) + "\n").encode())
@@ -192,7 +201,7 @@ def _evaluate_run(run_folder, episodes, validation_episodes, workers, log, extra
 def validation_table(folders, episodes: int = 500, bandwidths=(5e3, 25e3, 40e3)) -> str:
     """Markdown: mean PSNR of every seed of each run folder on ``episodes`` layouts of
     ``keys.VALIDATION_SEED`` at each B, the numbers settings are chosen on (test layouts untouched)."""
-    from semuav_jax.agents.runs import load_run, run_params
+    from semuav_jax.agents.runs import load_run
 
     keys = episode_keys(VALIDATION_SEED, episodes)
     lines = [
@@ -200,11 +209,11 @@ def validation_table(folders, episodes: int = 500, bandwidths=(5e3, 25e3, 40e3))
         "|---|---|" + "---|" * len(bandwidths),
     ]
     for folder in folders:
-        run, config, nets = load_run(folder)
-        params = run_params(run)
+        run, nets = load_run(folder)
+        params, config = run.env_params(), run.agent
         psnr = seed_metrics(q_network(params, config), nets, config, keys, params, bandwidths)["mean_psnr"].mean(-1)
         for s, row in enumerate(psnr):
-            lines.append(f"| {folder} | {run['seed']}:{s} | " + " | ".join(f"{x:.2f}" for x in row) + " |")
+            lines.append(f"| {folder} | {run.seed}:{s} | " + " | ".join(f"{x:.2f}" for x in row) + " |")
     return "\n".join(lines)
 
 

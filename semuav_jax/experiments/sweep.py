@@ -26,8 +26,8 @@ import numpy as np
 
 from baselines.evaluate import baseline_metrics, resolve, tsp_ranks
 from baselines.policies import DEFAULT_V_B, POLICIES
-from semuav_jax.agents.ddqn import q_network
-from semuav_jax.agents.evaluate import agent_state, greedy_policy
+from semuav_jax.agents.network import q_network
+from semuav_jax.agents.policy import greedy_policy
 from semuav_jax.agents.runs import MODEL_FILE, load_run, shipped_folder
 from semuav_jax.agents.scenarios import scenario_params
 from semuav_jax.curves import load_curves
@@ -148,7 +148,8 @@ def run_item(grid: dict, item: dict) -> dict:
         skeys, srank = shard_episodes((keys, jnp.asarray(rank)))
         m = _baseline(resolve(spec["baseline"]), skeys, params, jnp.float32(spec["v_b"]), srank)
     else:
-        _, config, nets = load_run(spec["run"])
+        run, nets = load_run(spec["run"])
+        config = run.agent
         if spec["seed"] >= len(jax.tree.leaves(nets)[0]):
             raise ValueError(f"policy {item['policy']!r}: the run has {len(jax.tree.leaves(nets)[0])} training seeds")
         net = jax.tree.map(lambda x: jnp.asarray(x[spec["seed"]]), nets)
@@ -156,7 +157,7 @@ def run_item(grid: dict, item: dict) -> dict:
             greedy_policy(q_network(params, config), config),
             shard_episodes(keys),
             params,
-            agent_state(net),
+            net,
             state_axes=None,
         )[0]
     m = gather(m)

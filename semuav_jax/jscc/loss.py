@@ -21,7 +21,7 @@ from semuav_jax.jscc.model import (
 )
 
 if TYPE_CHECKING:
-    from semuav_jax.jscc.train import TrainConfig
+    from semuav_jax.jscc.config import TrainConfig
 
 MSE_FLOOR = 1e-4
 

@@ -37,52 +37,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
-from flax import serialization
 
+from semuav_jax import checkpoint
 from semuav_jax.io import atomic_write
+from semuav_jax.jscc.config import CHANNELS, TrainConfig  # noqa: F401 - CHANNELS: re-exported
 from semuav_jax.jscc.data import sample_batch
 from semuav_jax.jscc.loss import make_optimizer, make_train_step, model_of, transmit  # noqa: F401 - transmit: re-exported
 from semuav_jax.jscc.model import IMAGE_SHAPE, M
 
 CKPT_FILE = "checkpoint.msgpack"
 CONFIG_FILE = "config.json"
-CHANNELS = ("awgn", "quantized")
-
-
-@dataclasses.dataclass(frozen=True)
-class TrainConfig:
-    """Hyper-parameters; ``steps`` fixes the learning-rate schedule (and the run's length)."""
-
-    steps: int = 3600
-    batch: int = 64
-    lr: float = 2e-3
-    snr_db: float = 30.0
-    width: int = 32
-    seed: int = 0
-    monotone_weight: float = 16.0
-    monotone_margin: float = 0.0
-    monotone_gap: int = 1
-    channel: str = "awgn"
-    mask_input: bool = False
-    synthetic_fraction: float = 0.25
-    init_from: str | None = None
-
-    def validate(self) -> None:
-        if self.channel not in CHANNELS:
-            raise ValueError(f"channel must be one of {CHANNELS}, got {self.channel!r}")
-        for name in ("steps", "batch", "width", "monotone_gap"):
-            if int(getattr(self, name)) < 1:
-                raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)}")
-        if not (np.isfinite(self.lr) and self.lr > 0):
-            raise ValueError(f"lr must be finite and > 0, got {self.lr}")
-        if not np.isfinite(self.snr_db):
-            raise ValueError(f"snr_db must be finite, got {self.snr_db}")
-        if not (np.isfinite(self.monotone_weight) and self.monotone_weight >= 0):
-            raise ValueError(f"monotone_weight must be >= 0, got {self.monotone_weight}")
-        if not 0.0 <= self.synthetic_fraction <= 1.0:
-            raise ValueError(f"synthetic_fraction must be in [0, 1], got {self.synthetic_fraction}")
-        if not np.isfinite(self.monotone_margin):
-            raise ValueError(f"monotone_margin must be finite, got {self.monotone_margin}")
 
 
 def init_params(cfg: TrainConfig):
@@ -127,7 +91,7 @@ def save_checkpoint(out: Path, cfg: TrainConfig, params, opt_state, step: int, h
         "step": step,
         "history": np.asarray(history, np.float64).reshape(-1, 3),
     }
-    atomic_write(out / CKPT_FILE, serialization.to_bytes(state))
+    checkpoint.save(out / CKPT_FILE, state)
 
 
 def check_out(out: str | os.PathLike, resume: bool = False, overwrite: bool = False):
@@ -171,18 +135,8 @@ def load_checkpoint(ckpt_dir: str | os.PathLike, cfg: TrainConfig, opt: optax.Gr
     before it held one)."""
     params = init_params(cfg)
     template = {"params": params, "opt_state": opt.init(params), "step": 0}
-    p = Path(ckpt_dir) / CKPT_FILE
-    try:
-        raw = serialization.msgpack_restore(p.read_bytes())
-        history = raw.pop("history", None)
-        state = serialization.from_state_dict(template, raw)
-    except Exception as e:
-        raise ValueError(f"{p}: unreadable checkpoint ({type(e).__name__}: {e})") from e
-    got, want = jax.tree_util.tree_leaves(state), jax.tree_util.tree_leaves(template)
-    if jax.tree_util.tree_structure(state) != jax.tree_util.tree_structure(template) or any(
-        np.shape(a) != np.shape(b) for a, b in zip(got, want)
-    ):
-        raise ValueError(f"{p}: its arrays do not match {Path(ckpt_dir) / CONFIG_FILE} (not this run's checkpoint)")
+    state, extras = checkpoint.restore(Path(ckpt_dir) / CKPT_FILE, template, free=("history",))
+    history = extras["history"]
     if history is None:  # written before checkpoints held their history
         history = load_config(ckpt_dir)[1].get("history", [])
     history = [(int(s), float(loss), float(t)) for s, loss, t in np.asarray(history, np.float64).reshape(-1, 3)]

@@ -1,0 +1,133 @@
+"""The DDQN's hyperparameters (MODEL.md section 6, docs/ddqn.md): one frozen dataclass whose fields
+carry their command-line help (``train.py`` derives its options from them).
+
+Network and optimiser follow the paper: MLP 128-128-64 with ReLU, Adam, replay memory of 50 000
+transitions. The default learning rate is 2.5e-4 rather than the paper's 5e-5, which learns too
+slowly for a 10-minute CPU budget (docs/ddqn.md).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from semuav_jax.actions import ACTION_MODES
+
+
+def _f(default, help: str):
+    """A config field with its command-line help (``train.py`` derives its options from these)."""
+    return dataclasses.field(default=default, metadata={"help": help})
+
+
+@dataclasses.dataclass(frozen=True)
+class DDQNConfig:
+    """Hyperparameters (static). ``total_steps`` counts environment steps summed over envs."""
+
+    num_envs: int = _f(64, "parallel environments per agent")
+    total_steps: int = _f(16_000_000, "environment steps per agent, summed over its envs")
+    steps_per_chunk: int = _f(250, "vmapped env steps per compiled chunk (target sync and metrics per chunk)")
+    updates_per_step: int = _f(1, "gradient updates after each vmapped env step")
+    batch_size: int = _f(256, "replay minibatch")
+    buffer_size: int = _f(50_000, "replay memory, transitions")
+    learning_starts: int = _f(10_000, "random transitions stored before learning")
+    lr: float = _f(2.5e-4, "Adam learning rate")
+    lr_end: float = _f(0.1, "learning rate at the end of training as a share of lr (cosine decay); 1: constant")
+    gamma: float = _f(0.99, "discount per slot")
+    eps_start: float = _f(1.0, "initial exploration rate")
+    eps_end: float = _f(0.02, "final exploration rate")
+    eps_decay_frac: float = _f(0.5, "share of training over which epsilon decays linearly")
+    target_period: int = _f(4, "chunks between target-network syncs")
+    n_step: int = _f(10, "steps summed in each return before bootstrapping")
+    reward_scale: float = _f(0.01, "multiplies every reward before learning")
+    max_grad_norm: float = _f(10.0, "global gradient-norm clip")
+    hidden: tuple = _f((128, 128, 64), "hidden layer widths of the Q-network MLP")
+    dueling: bool = _f(False, "dueling head: Q = V + A - mean(A) (Wang et al. 2016) instead of one linear layer")
+    sorted_devices: bool = _f(True, "table actions: sort device blocks nearest first and add tanh offsets")
+    shield_margin: float | None = _f(2.0, "seconds of slack of the BS's return-home shield; none: no shield")
+    actions: str = _f(
+        "waypoint", "waypoint (eq. 6.2: device, speed or hover, home) or table (the paper's 9 accelerations)"
+    )
+    bandwidth_range: tuple | None = _f(
+        (4e3, 45e3),
+        "(lo, hi) Hz: the envs train at bandwidths evenly spaced in the range "
+        "(one agent for every B); none: the scenario's B",
+    )
+
+    def __post_init__(self):
+        for name in ("hidden", "bandwidth_range"):  # lists (from JSON or the command line) become tuples
+            if isinstance(getattr(self, name), list):
+                object.__setattr__(self, name, tuple(getattr(self, name)))
+        ints = (
+            "num_envs",
+            "total_steps",
+            "steps_per_chunk",
+            "updates_per_step",
+            "batch_size",
+            "buffer_size",
+            "target_period",
+            "n_step",
+        )
+        for name in ints:
+            if int(getattr(self, name)) < 1:
+                raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)}")
+        if self.learning_starts < self.batch_size:
+            raise ValueError(f"learning_starts ({self.learning_starts}) must be >= batch_size ({self.batch_size})")
+        if self.learning_starts > self.buffer_size:
+            raise ValueError(f"learning_starts ({self.learning_starts}) must be <= buffer_size ({self.buffer_size})")
+        if self.buffer_size < self.num_envs:
+            raise ValueError(f"buffer_size ({self.buffer_size}) must be >= num_envs ({self.num_envs})")
+        if not 0.0 <= self.eps_end <= self.eps_start <= 1.0:
+            raise ValueError(f"need 0 <= eps_end <= eps_start <= 1, got {self.eps_end}, {self.eps_start}")
+        if not 0.0 < self.eps_decay_frac <= 1.0:
+            raise ValueError(f"eps_decay_frac must be in (0, 1], got {self.eps_decay_frac}")
+        if not 0.0 <= self.gamma <= 1.0:
+            raise ValueError(f"gamma must be in [0, 1], got {self.gamma}")
+        if self.shield_margin is not None and not self.shield_margin >= 0:
+            raise ValueError(f"shield_margin must be >= 0 seconds or None (no shield), got {self.shield_margin}")
+        if self.actions not in ACTION_MODES:
+            raise ValueError(f"actions must be one of {ACTION_MODES}, got {self.actions!r}")
+        if self.bandwidth_range is not None:
+            lo, hi = self.bandwidth_range
+            if not 0 < lo <= hi < float("inf"):
+                raise ValueError(
+                    f"bandwidth_range must be (lo, hi) with 0 < lo <= hi, finite, got {self.bandwidth_range}"
+                )
+        if not self.hidden or not all(isinstance(h, int) and h >= 1 for h in self.hidden):
+            raise ValueError(f"hidden must be one or more positive layer widths, got {self.hidden}")
+        if not 0.0 < self.lr_end <= 1.0:
+            raise ValueError(f"lr_end must be in (0, 1], got {self.lr_end}")
+        for name in ("lr", "reward_scale", "max_grad_norm"):
+            if not 0 < getattr(self, name) < float("inf"):  # NaN fails too
+                raise ValueError(f"{name} must be finite and > 0, got {getattr(self, name)}")
+        if self.shield_margin is not None and self.shield_margin == float("inf"):
+            raise ValueError("shield_margin must be finite (none: no shield)")
+        if self.num_chunks < 1:
+            raise ValueError(
+                f"total_steps ({self.total_steps}) is less than one chunk "
+                f"(num_envs * steps_per_chunk = {self.num_envs * self.steps_per_chunk})"
+            )
+
+    @property
+    def warmup_steps(self) -> int:
+        """Vmapped env steps of the random warm-up that fills the memory to ``learning_starts``."""
+        return -(-self.learning_starts // self.num_envs)
+
+    @property
+    def num_chunks(self) -> int:
+        return self.total_steps // (self.num_envs * self.steps_per_chunk)
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict, where: str = "the agent config") -> DDQNConfig:
+        """The config of a JSON object; ValueError (one line) for an unknown key or a bad value."""
+        if not isinstance(d, dict):
+            raise ValueError(f"{where}: the agent config must be a JSON object, got {type(d).__name__}")
+        unknown = sorted(set(d) - {f.name for f in dataclasses.fields(cls)})
+        if unknown:
+            keys = ", ".join(unknown)
+            raise ValueError(f"{where}: unknown key{'s' * (len(unknown) > 1)} in its agent config: {keys}")
+        try:
+            return cls(**d)
+        except TypeError as e:
+            raise ValueError(f"{where}: bad agent config ({e})") from None

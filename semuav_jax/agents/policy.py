@@ -1,0 +1,80 @@
+"""The DDQN agent at the BS as an ``engine.Policy`` (docs/ddqn.md): what it sees (its input,
+``agents/features.py``), how it chooses (greedy in evaluation, epsilon-greedy in training) and the
+BS's shield around the choice (``agents/shield.py``), the same in training and evaluation."""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from semuav_jax.agents.config import DDQNConfig
+from semuav_jax.agents.features import table_features, waypoint_features
+from semuav_jax.agents.shield import shield, waypoint_shield
+from semuav_jax.engine import Policy
+from semuav_jax.env import reset_state
+from semuav_jax.observation import observation
+from semuav_jax.params import EnvParams
+
+
+def agent_input(state, params: EnvParams, config: DDQNConfig):
+    """The Q-network's input for one ``EnvState`` (``agents/features.py``)."""
+    if config.actions == "waypoint":
+        return waypoint_features(state, params)
+    obs = observation(state, params)
+    return table_features(obs) if config.sorted_devices else obs
+
+
+def input_size(params: EnvParams, config: DDQNConfig) -> int:
+    """Length of :func:`agent_input` for ``params``' N."""
+    state = jax.eval_shape(reset_state, jax.random.key(0), params)
+    return int(jax.eval_shape(lambda s: agent_input(s, params, config), state).shape[0])
+
+
+@functools.cache
+def agent_shield(config: DDQNConfig) -> Callable:
+    """``(action, state, params) -> action sent``: the BS's shield for the agent's action mode
+    (no change when ``config.shield_margin`` is None)."""
+    fn = waypoint_shield if config.actions == "waypoint" else shield
+    return lambda action, state, params: fn(action, state, params, config.shield_margin)
+
+
+@functools.cache
+def _observe(config: DDQNConfig) -> Callable:
+    return lambda state, params: agent_input(state, params, config)
+
+
+@functools.cache
+def greedy_policy(network, config: DDQNConfig) -> Policy:
+    """The trained agent: argmax Q of its input, through the shield. Policy state: the weights."""
+
+    def act(net, obs, params: EnvParams):
+        return jnp.argmax(network.apply(net, obs)), net
+
+    return Policy(act=act, mode=config.actions, observe=_observe(config), shield=agent_shield(config))
+
+
+@struct.dataclass
+class Explore:
+    """Policy state of one training env in one slot: the weights, epsilon, and the slot's draws
+    (uniform u: explore when u < epsilon; the random action)."""
+
+    net: Any
+    eps: jax.Array
+    u: jax.Array
+    random_action: jax.Array
+
+
+@functools.cache
+def explore_policy(network, config: DDQNConfig) -> Policy:
+    """Epsilon-greedy :func:`greedy_policy` (training), through the same shield."""
+
+    def act(ps: Explore, obs, params: EnvParams):
+        greedy = jnp.argmax(network.apply(ps.net, obs))
+        return jnp.where(ps.u < ps.eps, ps.random_action, greedy), ps
+
+    return Policy(act=act, mode=config.actions, observe=_observe(config), shield=agent_shield(config))
