@@ -21,6 +21,7 @@ import numpy as np
 
 from baselines.evaluate import layouts
 from semuav_jax import channel
+from semuav_jax.control import range_radius
 from semuav_jax.params import EnvParams, validate_params
 
 R_GRID = 4097  # ground distances in [0, range radius] at which the largest SNR is taken
@@ -29,8 +30,7 @@ R_GRID = 4097  # ground distances in [0, range radius] at which the largest SNR 
 def peak_rate(params: EnvParams) -> float:
     """R0 = B log2(1 + max SNR) (eq. 2.6) over the ground distances where a device is in range
     (eq. 3.5); the SNR decreases with the distance, so the maximum is at r = 0 (a test checks it)."""
-    H, D = float(params.H), float(params.D_com)
-    r = np.linspace(0.0, np.sqrt(max(D * D - H * H, 0.0)), R_GRID)
+    r = np.linspace(0.0, float(range_radius(params)), R_GRID)
     return float(np.max(np.asarray(_rates(jnp.asarray(r * r, jnp.float32), params), np.float64)))
 
 

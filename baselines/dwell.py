@@ -21,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from semuav_jax.control import STOP_BRAKE, approach_speed, home_command, speed_command, time_home, time_to_pass
+from semuav_jax.control import STOP_BRAKE, approach_speed, home_command, speed_command, time_via
 from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import rollout
 
@@ -48,12 +48,9 @@ def init_dwell(v_c, k_star, margin, rank) -> DwellState:
 
 def candidates(ps: DwellState, s, params: EnvParams):
     """(N,) bool, eq. 7.9: devices short of k* symbols that still fit before flying home."""
-
-    def need(p):
-        return time_to_pass(s.q, s.v, p, ps.v_c, params) + time_home(p, jnp.zeros(2), ps.v_c, params)
-
+    need = jax.vmap(lambda p: time_via(s.q, s.v, p, ps.v_c, params, stop=True))(s.dev_pos)
     left = (params.K - s.t) * params.tau
-    fits = jax.vmap(need)(s.dev_pos) + ps.margin <= left
+    fits = need + ps.margin <= left
     return fits & (s.m < jnp.minimum(ps.k_star, params.M) - 1e-3)
 
 

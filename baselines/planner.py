@@ -11,7 +11,8 @@ Flying (JAX, in the env): :func:`planner` is a pure policy like the baselines. I
 planned device at the plan's speed and slows to the visit's speed w at the edge of its range (to
 rest for a hover, eq. 7.3 with ``STOP_BRAKE``); a pass ends at the device, a hover when the
 target symbols have arrived. It skips a device when flying there, hovering and then home no
-longer fits, and flies home (eq. 7.5) when the time left requires it. The command delays and the real rates (shared band, edge of range) are the env's.
+longer fits, and flies home (eq. 7.5) when the time left requires it. The command delays and the
+real rates (shared band, edge of range) are the env's.
 """
 
 from __future__ import annotations
@@ -62,7 +63,7 @@ class PlanState:
 
 def hover_rate(params: EnvParams) -> float:
     """s0: symbols per second of a lone device right below the UAV, R(0) / beta (eq. 2.6)."""
-    return float(channel.rate(0.0, params.H, params.P_n, params.B, params)) / float(params.beta)
+    return float(channel.rest_rate(params)) / float(params.beta)
 
 
 def _range_symbols(params: EnvParams, n: int = 400):
@@ -108,29 +109,36 @@ def visit_options(v, params: EnvParams):
     )
 
 
-def problems(dev_pos, dev_img, params: EnvParams, v):
-    """The orienteering inputs (travel_s, service_s, prize) of E layouts at cruise speed v and
-    the options' (w, target). Travel is cruising at v plus one slot of command delay per leg;
-    the first leg adds v / (2 a_max) to speed up, the last the braking into the arrival circle."""
+def travel_times(start, dev_pos, params: EnvParams, v: float, v_now=None):
+    """Eq. 7.7: the legs' seconds (E, N+2, N+2) over the nodes [start (E, 2), devices (E, N, 2), q_fin]
+    of E episodes: cruising at v plus one slot of command delay per leg; the first leg adds the time
+    to reach cruise, v / (2 a_max) from rest or ||v u - v_now|| / (2 a_max) from the velocity
+    ``v_now`` (E, 2), u its course; the last the braking into the arrival disk. Never negative."""
     a, tau = float(params.a_max), float(params.tau)
+    E = len(start)
+    q_fin = np.broadcast_to(np.asarray(params.q_fin, np.float64), (E, 1, 2))
+    nodes = np.concatenate([np.asarray(start)[:, None], dev_pos, q_fin], 1)
+    diff = nodes[:, None] - nodes[:, :, None]
+    d = np.linalg.norm(diff, axis=-1)
+    travel = d / v + tau
+    if v_now is None:
+        travel[:, 0, :] += v / (2 * a)
+    else:
+        u0 = diff[:, 0] / np.maximum(d[:, 0, :, None], 1e-6)
+        travel[:, 0, :] += np.linalg.norm(v * u0 - v_now[:, None], axis=-1) / (2 * a)
+    travel[:, :, -1] += v / (2 * BRAKE * a) - float(params.r_arr) / v
+    return np.maximum(travel, 0.0)
+
+
+def problems(dev_pos, dev_img, params: EnvParams, v):
+    """The orienteering inputs (travel_s, service_s, prize) of E layouts at cruise speed v, from
+    q0 at rest (:func:`travel_times`), and the options' (w, target)."""
     C = np.asarray(params.C, np.float64)
     E, N = dev_pos.shape[:2]
-    nodes = np.concatenate(
-        [
-            np.broadcast_to(np.asarray(params.q0), (E, 1, 2)),
-            dev_pos,
-            np.broadcast_to(np.asarray(params.q_fin), (E, 1, 2)),
-        ],
-        axis=1,
-    )
-    d = np.linalg.norm(nodes[:, :, None] - nodes[:, None], axis=-1)
-    travel = d / v + tau
-    travel[:, 0, :] += v / (2 * a)
-    travel[:, :, -1] += v / (2 * BRAKE * a) - float(params.r_arr) / v
     w, sym, service, target = visit_options(v, params)
     prize = C[dev_img][:, :, np.floor(sym).astype(int)] - C[dev_img][:, :, :1]
     return (
-        np.maximum(travel, 0.0),
+        travel_times(np.broadcast_to(np.asarray(params.q0), (E, 2)), dev_pos, params, v),
         np.ascontiguousarray(np.broadcast_to(service, (E, N, len(w)))),
         np.maximum(prize, 0.0),
         w,

@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from semuav_jax.control import home_command, speed_command, time_home, time_to_pass
+from semuav_jax.control import home_command, speed_command, time_via
 from semuav_jax.params import EnvParams
 
 DEFAULT_V_B = 8.9  # m/s, the paper's baseline speed
@@ -29,13 +29,8 @@ def feasible(q, v, t, dev_pos, v_b, params: EnvParams):
     """(N,) bool, eq. 7.6: flying from (q, v) through p_n at v_b (eq. 7.4) and from there home
     (eq. 7.5, leaving p_n at v_b along the approach course) fits in the time left (K - t) tau
     less ``MARGIN_S``."""
-
-    def need(p):
-        d = p - q
-        u = d / jnp.maximum(jnp.linalg.norm(d), 1e-6)
-        return time_to_pass(q, v, p, v_b, params) + time_home(p, v_b * u, v_b, params)
-
-    return jax.vmap(need)(dev_pos) + MARGIN_S <= (params.K - t) * params.tau
+    need = jax.vmap(lambda p: time_via(q, v, p, v_b, params))(dev_pos)
+    return need + MARGIN_S <= (params.K - t) * params.tau
 
 
 @struct.dataclass

@@ -16,8 +16,8 @@ import jax
 import numpy as np
 
 from baselines import orienteering
-from baselines.planner import SERVICE_STEP_S, PlanState, _range_symbols, hover_rate, planner
-from semuav_jax.control import BRAKE, STOP_BRAKE, range_radius
+from baselines.planner import SERVICE_STEP_S, PlanState, _range_symbols, hover_rate, planner, travel_times
+from semuav_jax.control import STOP_BRAKE, range_radius
 from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import rollout_replanned
 
@@ -74,23 +74,16 @@ def problems(q, v_now, m, t, dev_pos, dev_img, params: EnvParams, v: float):
     """Orienteering inputs of E episodes from their current states at cruise speed v: travel
     (E, N+2, N+2) over [q, devices, q_fin] (eq. 7.7: cruise plus one slot of command delay, the
     first leg plus ||v u - v_now|| / (2 a_max) to reach cruise, the last the braking into the
-    arrival disk), service, prize (E, N, L), the budget (E,) and the options' (w, target)."""
-    a, tau = float(params.a_max), float(params.tau)
-    E = len(q)
-    nodes = np.concatenate([q[:, None], dev_pos, np.broadcast_to(np.asarray(params.q_fin, np.float64), (E, 1, 2))], 1)
-    diff = nodes[:, None] - nodes[:, :, None]
-    d = np.linalg.norm(diff, axis=-1)
-    travel = d / v + tau
-    u0 = diff[:, 0] / np.maximum(d[:, 0, :, None], 1e-6)
-    travel[:, 0, :] += np.linalg.norm(v * u0 - v_now[:, None], axis=-1) / (2 * a)
-    travel[:, :, -1] += v / (2 * BRAKE * a) - float(params.r_arr) / v
+    arrival disk; ``planner.travel_times``), service, prize (E, N, L), the budget (E,) and the
+    options' (w, target)."""
     w, after, service, target = options(v, m, params)
     C = np.asarray(params.C, np.float64)
     rows = C[dev_img]  # (E, N, M + 1)
     now = np.take_along_axis(rows, np.floor(m).astype(int)[..., None], -1)
     prize = np.maximum(np.take_along_axis(rows, np.floor(after).astype(int), -1) - now, 0.0)
-    left = np.maximum(params.K - np.asarray(t, np.float64), 0.0) * tau
-    return np.maximum(travel, 0.0), service, prize, left * (1.0 + SLACK_SHARE), w, target
+    left = np.maximum(params.K - np.asarray(t, np.float64), 0.0) * float(params.tau)
+    travel = travel_times(q, dev_pos, params, v, v_now)
+    return travel, service, prize, left * (1.0 + SLACK_SHARE), w, target
 
 
 def _solve(states, params: EnvParams, v: float, workers: int):

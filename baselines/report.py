@@ -2,7 +2,8 @@
 tuned speed v_b*, greedy-dwell and TSP-dwell at their tuned knobs, the open-loop planner, the exact
 receding-horizon planner and the certified bound, per bandwidth.
 
-``python -m baselines.report [--episodes 1000] [--validation-episodes 500] [--json out.json]``
+``semuav-baselines`` or ``python -m baselines.report [--episodes 1000] [--validation-episodes 500]
+[--json out.json]`` (the command line: ``semuav_jax.cli.baselines``).
 
 v_b* and the dwell knobs (v_c, k*, margin) are chosen per bandwidth on the validation layouts
 (``keys.VALIDATION_SEED``) from ``SPEED_GRID`` and ``DWELL_GRID`` as the best mean PSNR among the
@@ -12,8 +13,6 @@ reported number comes from the test layouts (``keys.TEST_SEED``), the same episo
 
 from __future__ import annotations
 
-import argparse
-import json
 import time
 
 import jax
@@ -26,10 +25,8 @@ from baselines.evaluate import run, sweep, tsp_ranks
 from baselines.planner import PLAN_SPEEDS, make_plans, planner, visit_options
 from baselines.policies import DEFAULT_V_B
 from baselines.travel_bound import flight_account, travel_bound
-from semuav_jax import distributed
-from semuav_jax.io import atomic_write
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
-from semuav_jax.params import make_params, validate_params
+from semuav_jax.params import validate_params
 from semuav_jax.stats import mean_ci, wilson_interval
 
 SPEED_GRID = tuple(float(v) for v in range(6, 26))  # m/s, 6..25 in 1 m/s steps
@@ -244,48 +241,7 @@ def markdown(r: dict) -> str:
     return "\n".join(lines)
 
 
-def main(argv=None) -> None:
-    distributed.guarded(_main, argv)
+if __name__ == "__main__":  # ``python -m baselines.report``: the command lives in semuav_jax.cli.baselines
+    from semuav_jax.cli.baselines import main
 
-
-def _main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--episodes", type=int, default=1000, help="test layouts")
-    ap.add_argument("--validation-episodes", type=int, default=500, help="layouts that choose v_b*")
-    ap.add_argument("--B", type=float, nargs="+", default=list(BANDWIDTHS), help="bandwidths (Hz)")
-    ap.add_argument("--curves", help="PSNR curves file (default: the shipped DeepJSCC curves)")
-    ap.add_argument("--workers", type=int, default=2, help="processes for OR-Tools and the planner")
-    ap.add_argument("--json", help="write the report here")
-    distributed.add_options(ap)
-    args = ap.parse_args(argv)
-    for name, lo in (("episodes", 2), ("validation_episodes", 1), ("workers", 1)):  # an interval needs 2 episodes
-        if getattr(args, name) < lo:
-            ap.error(f"--{name.replace('_', '-')} must be >= {lo}, got {getattr(args, name)}")
-    if not all(np.isfinite(b) and b > 0 for b in args.B):
-        ap.error(f"--B must be finite and > 0 Hz, got {args.B}")
-    from pathlib import Path
-
-    from semuav_jax.curves import load_curves
-    from semuav_jax.io import check_writable_folder
-
-    try:  # every path checked before the computation
-        distributed.initialize(args)
-        if args.json and Path(args.json).is_dir():
-            raise ValueError(f"--json {args.json} is a folder, not a file")
-        if args.json:
-            check_writable_folder(Path(args.json).parent, "the folder of --json")
-        params = make_params(load_curves(args.curves), B=args.B[0])
-        for b in args.B:
-            check_bandwidth(params, b)
-    except (ValueError, OSError, distributed.DistributedError) as e:
-        ap.error(str(e))
-    r = report(params, tuple(args.B), args.episodes, args.validation_episodes, args.workers)
-    if not distributed.is_main():  # process 0 alone reports and writes
-        return
-    print(markdown(r))
-    if args.json:
-        atomic_write(args.json, json.dumps(r, indent=2).encode())
-
-
-if __name__ == "__main__":
     main()

@@ -24,14 +24,6 @@ def distance_matrix(dev_pos, q0, q_fin) -> np.ndarray:
     return np.linalg.norm(nodes[:, None] - nodes[None], axis=-1)
 
 
-def path_length(order, dev_pos, q0, q_fin) -> float:
-    """Length (metres) of the open path q0 -> devices in ``order`` -> q_fin."""
-    pts = np.concatenate(
-        [np.asarray(q0, float)[None], np.asarray(dev_pos, float)[list(order)], np.asarray(q_fin, float)[None]]
-    )
-    return float(np.linalg.norm(np.diff(pts, axis=0), axis=-1).sum())
-
-
 def _search(time_limit_ms):
     """Cheapest-arc start, then guided local search for ``time_limit_ms`` (None: default local search, no limit)."""
     search = pywrapcp.DefaultRoutingSearchParameters()

@@ -1,20 +1,23 @@
 """Split a batch over worker processes that run one function of a NumPy-only module file.
 
 ``map_chunks`` starts ``python workers.py <module file> <function>`` per chunk, sends the chunk as an
-npz on stdin and reads the function's arrays back as an npz from stdout. The worker loads the module
-by its file path, not as ``baselines.<name>`` (the package ``__init__`` imports JAX): such a module
-must import nothing from ``baselines`` at top level. Unlike a multiprocessing pool this needs no
+npz on stdin and reads the function's arrays back as an npz from stdout. The worker imports the module
+as ``<package>.<name>`` under a bare stand-in for its package, whose ``__init__`` (which imports JAX)
+it never runs: such a module may import, at top level, only siblings that are themselves free of JAX
+and of the package's ``__init__``. Unlike a multiprocessing pool this needs no
 ``__main__`` guard in the caller and never forks JAX. A worker runs its chunk in pieces of
 ``PIECE`` items and reports each on stderr, so the caller's progress bar moves while it solves.
 """
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 import io
 import subprocess
 import sys
 import threading
+import types
+from pathlib import Path
 
 import numpy as np
 
@@ -89,13 +92,20 @@ def map_chunks(
     return {k: np.concatenate([r[k] for r in results]) for k in results[0].files}
 
 
+def _load(module_file):
+    """The module of ``module_file`` imported as ``<package>.<name>``, the package a bare module
+    whose ``__init__`` is not run."""
+    path = Path(module_file).resolve()
+    package = types.ModuleType(path.parent.name)
+    package.__path__ = [str(path.parent)]
+    sys.modules[package.__name__] = package
+    return importlib.import_module(f"{package.__name__}.{path.stem}")
+
+
 def _main() -> None:
     """Worker: load the module file, call the function on the npz from stdin, write its npz to stdout."""
     module_file, function = sys.argv[1:3]
-    spec = importlib.util.spec_from_file_location("_worker_module", module_file)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
+    module = _load(module_file)
     data = np.load(io.BytesIO(sys.stdin.buffer.read()))
     names = set(data[SHARED].tolist())
     shared = {k: data[k] for k in data.files if k in names}

@@ -20,9 +20,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from multiprocess import environment, start, wait_all
+from multiprocess import environment, start, wait_all  # noqa: E402 - tests/ on the path first
 
-from semuav_jax.io import atomic_write
+from semuav_jax.io import atomic_write  # noqa: E402
 
 
 def items(out: Path) -> dict:

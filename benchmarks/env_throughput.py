@@ -65,7 +65,7 @@ def numpy_steps_per_s(params):
     p, rng = params_dict(params), np.random.default_rng(0)
     env = NumpyEnv(p, params.C, rng.uniform(size=(params.N, 2)) * [p["Lx"], p["Ly"]], np.arange(params.N))
     t0 = time.perf_counter()
-    for i in range(args.numpy_steps):
+    for _ in range(args.numpy_steps):
         if env.done:
             env = NumpyEnv(p, params.C, env.dev_pos, env.dev_img)
         env.step(rng.uniform(-p["a_max"], p["a_max"], 2), rng.uniform())

@@ -35,7 +35,7 @@ args = ap.parse_args()
 params = make_params(B=25e3)
 keys = episode_keys(TEST_SEED, args.layouts)
 rows = []
-for r in range(args.repeats):
+for _ in range(args.repeats):
     t0 = time.perf_counter()
     plans = make_plans(keys, params, workers=args.workers)
     t1 = time.perf_counter()
@@ -61,12 +61,13 @@ for r in range(args.repeats):
     )
 print(f"{args.layouts} layouts, B = 25 kHz, {args.workers} workers")
 print(
-    "| repeat | open loop: plan (s) | fly (s) | total (s) | exact planner (s) | bound (s) | PSNR open loop / exact / bound (dB) |"
+    "| repeat | open loop: plan (s) | fly (s) | total (s) | exact planner (s) | bound (s) "
+    "| PSNR open loop / exact / bound (dB) |"
 )
 print("|---|---|---|---|---|---|---|")
 for i, r in enumerate(rows):
     print(
-        f"| {i} | {r['plan_s']:.1f} | {r['fly_s']:.1f} | {r['open_loop_s']:.1f} | {r['exact_s']:.1f} | {r['bound_s']:.1f} | "
-        f"{r['mean_psnr']:.2f} / {r['exact_mean_psnr']:.2f} / {r['bound']:.2f} |"
+        f"| {i} | {r['plan_s']:.1f} | {r['fly_s']:.1f} | {r['open_loop_s']:.1f} | {r['exact_s']:.1f} "
+        f"| {r['bound_s']:.1f} | {r['mean_psnr']:.2f} / {r['exact_mean_psnr']:.2f} / {r['bound']:.2f} |"
     )
 atomic_write(args.out, json.dumps({"layouts": args.layouts, "workers": args.workers, "runs": rows}, indent=2).encode())

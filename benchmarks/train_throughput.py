@@ -85,12 +85,13 @@ def main():
     args = ap.parse_args()
     rows = [measure(s, args.chunks, p, b) for p in args.presets for b in args.buffers for s in args.seeds]
     print(
-        f"{'preset':>8} {'buffer':>8} {'seeds':>5} {'env steps/s':>12} {'updates/s':>10} {'timed s':>8} {'1st call s':>10}"
+        f"{'preset':>8} {'buffer':>8} {'seeds':>5} {'env steps/s':>12} {'updates/s':>10} {'timed s':>8} "
+        f"{'1st call s':>10}"
     )
     for r in rows:
         print(
-            f"{r['preset']:>8} {r['buffer']:>8} {r['seeds']:>5} {r['env_steps_per_s']:>12,.0f} {r['updates_per_s']:>10,.0f} "
-            f"{r['seconds']:>8.1f} {r['first_call_s']:>10.1f}"
+            f"{r['preset']:>8} {r['buffer']:>8} {r['seeds']:>5} {r['env_steps_per_s']:>12,.0f} "
+            f"{r['updates_per_s']:>10,.0f} {r['seconds']:>8.1f} {r['first_call_s']:>10.1f}"
         )
     info = {
         "config": DDQNConfig().to_dict(),

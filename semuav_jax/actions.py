@@ -71,7 +71,7 @@ def waypoint_accel(action, state, params: EnvParams):
 
 def num_actions(mode: str, params: EnvParams) -> int:
     """How many discrete actions the action mode ``mode`` has (eq. 6.1: levels^2; eq. 6.2: NUM_WAYPOINT_ACTIONS)."""
-    return NUM_WAYPOINT_ACTIONS if mode == "waypoint" else params.num_actions
+    return NUM_WAYPOINT_ACTIONS if mode == "waypoint" else params.levels * params.levels
 
 
 def to_accel(mode: str, action, state, params: EnvParams):

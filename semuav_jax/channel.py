@@ -77,3 +77,9 @@ def _log1p(x):
 def rate(r2, dh, power, bandwidth, params: EnvParams):
     """Eq. 2.6: R = B log2(1 + SNR), bit/s."""
     return bandwidth * _log1p(snr(r2, dh, power, params)) * (1.0 / jnp.log(2.0))
+
+
+def rest_rate(params: EnvParams):
+    """R(0): the rate (bit/s) of a lone device right below the UAV (eq. 2.6 at r = 0, dh = H), the
+    rate a hover over it receives at."""
+    return rate(0.0, params.H, params.P_n, params.B, params)

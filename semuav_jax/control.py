@@ -95,6 +95,18 @@ def time_home(q, v, speed, params: EnvParams, cruise=None):
     return turn + jnp.maximum(d - d0, 0.0) / cruise + brake
 
 
+def time_via(q, v, p, speed, params: EnvParams, stop: bool = False):
+    """Eqs. 7.4-7.5: conservative seconds to fly from (q, v) through ``p`` at ``speed``
+    (:func:`time_to_pass`) and from there home (:func:`time_home` at ``speed``), leaving ``p`` at
+    ``speed`` along the approach course, or at rest with ``stop``. A device's time slack is the
+    time left minus this (the feasibility test of eq. 7.6, the candidates of eq. 7.9)."""
+    if stop:
+        v_p = jnp.zeros(2)
+    else:
+        v_p = speed * _unit(p - q)[0]
+    return time_to_pass(q, v, p, speed, params) + time_home(p, v_p, speed, params)
+
+
 def home_command(q, v, speed, params: EnvParams):
     """Eq. 7.1 aimed at q_fin with :func:`approach_speed` (``speed`` far away, braking near q_fin)."""
     dist = jnp.linalg.norm(params.q_fin - q)

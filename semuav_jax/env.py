@@ -2,8 +2,8 @@
 
 ``transition`` is one slot driven by a continuous acceleration (what the baselines command);
 ``SemUAVEnv.step_env`` maps a discrete action index onto it (the paper's table, eq. 6.1, or the
-waypoint actions, eq. 6.2) and gymnax's ``Environment.step`` adds the auto-reset. Everything is pure and jittable. ``make`` builds the
-environment and its parameters by id, like ``gymnax.make``.
+waypoint actions, eq. 6.2) and gymnax's ``Environment.step`` adds the auto-reset. Everything is
+pure and jittable. ``make`` builds the environment and its parameters by id, like ``gymnax.make``.
 """
 
 from __future__ import annotations
@@ -173,7 +173,7 @@ class SemUAVEnv(environment.Environment[EnvState, EnvParams]):
             raise ValueError(f"state has {np.shape(state.m)[-1]} devices but params N = {params.N}")
         n = num_actions(self.actions, params)
         dtype = getattr(action, "dtype", None) if isinstance(action, jax.core.Tracer) else np.asarray(action).dtype
-        if dtype is None or dtype == bool or not np.issubdtype(dtype, np.integer):
+        if dtype is None or not np.issubdtype(dtype, np.integer):  # bool is not an integer dtype
             raise ValueError(f"action must be an integer in [0, {n}), got {action!r}")
         if not isinstance(action, jax.core.Tracer):
             a = np.asarray(action)

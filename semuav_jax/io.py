@@ -1,9 +1,10 @@
 """Atomic file writes: a temporary file in the same folder, then ``os.replace``, so an
-interrupted run never leaves a half-written result, checkpoint or curves file; and the checks an
-output folder passes before a long run writes to it."""
+interrupted run never leaves a half-written result, checkpoint, curves file or figure; and the
+checks an output folder passes before a long run writes to it."""
 
 from __future__ import annotations
 
+import io
 import os
 import tempfile
 from pathlib import Path
@@ -25,6 +26,21 @@ def atomic_write(path: str | os.PathLike, data: bytes) -> Path:
         if os.path.exists(tmp):
             os.remove(tmp)
     return path
+
+
+def save_figure(fig, path: str | os.PathLike, dpi: int = 120, layout: bool = True, crop: bool = True) -> Path:
+    """Write the matplotlib figure ``fig`` atomically in the format of ``path``'s suffix (.png,
+    .pdf, .svg) and close it. ``layout``: ``tight_layout`` first; ``crop``: the bounding box of
+    what is drawn, so legends placed outside the axes are kept."""
+    import matplotlib.pyplot as plt
+
+    if layout:
+        fig.tight_layout()
+    buf = io.BytesIO()
+    fmt = Path(path).suffix.lstrip(".").lower() or "png"
+    fig.savefig(buf, format=fmt, dpi=dpi, **({"bbox_inches": "tight"} if crop else {}))
+    plt.close(fig)
+    return atomic_write(path, buf.getvalue())
 
 
 def check_writable_folder(path: str | os.PathLike, what: str = "--out") -> Path:

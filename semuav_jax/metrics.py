@@ -6,8 +6,6 @@ import jax.numpy as jnp
 
 from semuav_jax.params import EnvParams, params_valid
 
-METRICS = ("mean_psnr", "coverage", "psnr_visited", "symbol_fraction", "arrived", "mission_time", "return")
-
 
 def episode_metrics(state, params: EnvParams) -> dict:
     """Metrics of one finished episode from its final ``EnvState``.

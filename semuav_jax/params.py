@@ -69,10 +69,6 @@ class EnvParams:
     def N(self) -> int:
         return self.device_pos.shape[-2]
 
-    @property
-    def num_actions(self) -> int:
-        return self.levels * self.levels
-
 
 def make_params(
     curves: PSNRCurves | np.ndarray | None = None,

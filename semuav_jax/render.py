@@ -12,15 +12,11 @@ from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Rectangle
 
+from semuav_jax.control import range_radius
 from semuav_jax.params import EnvParams
 
 SHARE_CMAP = colormaps["viridis"]
 SHARE_NORM = Normalize(0.0, 1.0)
-
-
-def ground_range(params: EnvParams) -> float:
-    """Radius of a device's range disc on the ground: the 3-D range D_com at altitude H (eq. 3.5)."""
-    return float(np.sqrt(float(params.D_com) ** 2 - float(params.H) ** 2))
 
 
 def view_limits(params: EnvParams, trails=()) -> tuple[np.ndarray, np.ndarray]:
@@ -39,7 +35,7 @@ def draw(ax, params: EnvParams, dev_pos, m, x, trail, t: int, mean_psnr: float, 
     transmitting, ``trail`` (T, 2) the UAV's positions up to now (last: where it is), slot ``t``."""
     dev_pos, share = np.asarray(dev_pos), np.clip(np.asarray(m) / float(params.M), 0.0, 1.0)
     x, trail = np.asarray(x, bool), np.asarray(trail).reshape(-1, 2)
-    radius = ground_range(params)
+    radius = float(range_radius(params))
     ax.add_patch(Rectangle((0, 0), float(params.Lx), float(params.Ly), fill=False, ls=":", color="0.5"))
     for d, s, tx in zip(dev_pos, share, x):
         ax.add_patch(Circle(d, radius, color=SHARE_CMAP(SHARE_NORM(s)), alpha=0.3 + 0.3 * tx, lw=0, zorder=1))

@@ -6,7 +6,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from semuav_jax.control import airspace_cap, approach_speed, home_command, speed_command, time_home, time_to_pass
+from semuav_jax.control import (
+    airspace_cap,
+    approach_speed,
+    home_command,
+    speed_command,
+    time_home,
+    time_to_pass,
+    time_via,
+)
 
 V_B = 8.9
 
@@ -100,6 +108,16 @@ def test_time_home_by_hand(params):
         ([950.0, 300.0], [25.0, 0.0], 20.0),
     ):
         assert th(q, v, s) == pytest.approx(time_home_by_hand(q, v, s, s), rel=1e-5)
+
+
+def test_time_via_by_hand(params):
+    """Eqs. 7.4 + 7.5: from rest at q0 through (500, 300) at 8.9 m/s (1.78 + 500 / 8.9 s), then home
+    leaving it at 8.9 m/s along +x (52.620 + 2.221 s, as above), or from rest with ``stop``."""
+    p, rest = jnp.array([500.0, 300.0]), jnp.zeros(2)
+    to_p = 1.78 + 500 / 8.9
+    assert float(time_via(params.q0, rest, p, V_B, params)) == pytest.approx(to_p + 52.620 + 2.221, abs=1e-3)
+    home = time_home_by_hand([500.0, 300.0], [0.0, 0.0], V_B, V_B)
+    assert float(time_via(params.q0, rest, p, V_B, params, stop=True)) == pytest.approx(to_p + home, rel=1e-5)
 
 
 def test_home_command_brakes_into_the_disk(params):

@@ -29,9 +29,11 @@ PRIMITIVES = textwrap.dedent(
     sharded = shard_episodes(keys)
     u = gather(draw(sharded))
     owner = split_hosts(lambda lo, hi: {"i": np.arange(lo, hi), "p": np.full(hi - lo, jax.process_index())}, 7)
+    plain = np.asarray(jax.vmap(lambda k: jax.random.uniform(k, (3,)))(keys))
+    local_rows = sum(s.data.shape[0] for s in sharded.addressable_shards)
     print(json.dumps({"process": jax.process_index(), "processes": jax.process_count(), "devices": jax.device_count(),
-                      "padded": int(sharded.shape[0]), "local_rows": sum(s.data.shape[0] for s in sharded.addressable_shards),
-                      "same": bool(np.array_equal(u[:7], np.asarray(jax.vmap(lambda k: jax.random.uniform(k, (3,)))(keys)))),
+                      "padded": int(sharded.shape[0]), "local_rows": local_rows,
+                      "same": bool(np.array_equal(u[:7], plain)),
                       "padding_repeats_last": bool(np.array_equal(u[7:], np.repeat(u[6:7], len(u) - 7, 0))),
                       "index": owner["i"].tolist(), "owner": owner["p"].tolist(),
                       "all_true": agree(True), "only_0": agree(jax.process_index() == 0)}))

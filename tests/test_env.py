@@ -108,7 +108,7 @@ def test_arrival_ends_episode(curves):
     p = make_params(curves, K=400, proc_max=0.0)
     s = env.reset_state(jax.random.key(0), p)
     reward_at_arrival = None
-    for t in range(p.K):
+    for _ in range(p.K):
         s_new, r = step_u(0.0, s, jnp.array([5.0, 0.0]), p)
         if bool(s_new.arrived) and reward_at_arrival is None:
             reward_at_arrival = float(r)
@@ -243,7 +243,7 @@ def test_gymnax_interface(params):
     np.testing.assert_allclose(low[9:14], [-(1 + 3125 / 600)] * 2 + [0, 0, 0], rtol=1e-6)
     assert bool(e.action_space(params).contains(e.action_space(params).sample(key)))
     step = jax.jit(e.step)
-    for t in range(300):  # longer than K: the auto-reset must kick in
+    for _ in range(300):  # longer than K: the auto-reset must kick in
         key, k1, k2 = jax.random.split(key, 3)
         obs, state, r, terminated, truncated, info = step(k1, state, e.action_space(params).sample(k2), params)
         assert bool(e.observation_space(params).contains(obs)) and np.isfinite(float(r))

@@ -72,7 +72,7 @@ def test_jit_vmap_step_matches_python_loop(short):
     batch_step = jax.jit(jax.vmap(env.step, (0, 0, 0, None)))
     singles = [env.reset(keys[i], p)[1] for i in range(E)]
     for i in range(E):
-        assert_same_state(jax.tree.map(lambda x: x[i], jax.device_get(states)), jax.device_get(singles[i]))
+        assert_same_state(jax.tree.map(lambda x, i=i: x[i], jax.device_get(states)), jax.device_get(singles[i]))
     # vmap vectorizes the float32 arithmetic differently: equal up to rounding (1e-6), the discrete
     # outcomes (t, x, done, arrived, layouts) exactly
     for t in range(K + 2):  # through every episode's end and auto-reset
@@ -83,7 +83,7 @@ def test_jit_vmap_step_matches_python_loop(short):
             np.testing.assert_allclose(batch[0][i], o, rtol=1e-6, atol=1e-6)
             assert float(batch[2][i]) == pytest.approx(float(r), rel=1e-6, abs=1e-6)
             assert batch[3][i] == bool(d) and not batch[4][i] and not bool(tr)
-            assert_same_state(jax.tree.map(lambda x: x[i], batch[1]), jax.device_get(singles[i]), rtol=1e-6)
+            assert_same_state(jax.tree.map(lambda x, i=i: x[i], batch[1]), jax.device_get(singles[i]), rtol=1e-6)
 
 
 def test_make(curves):

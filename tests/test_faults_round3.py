@@ -292,7 +292,7 @@ def test_resume_refuses_a_garbage_metrics_row(tmp_path):
 
 
 def test_jscc_figure_needs_an_image_path(tmp_path, capsys):
-    from semuav_jax.jscc.__main__ import main
+    from semuav_jax.cli.jscc import main
 
     code, err = _err(capsys, main, ["figure", "--out", str(tmp_path / "j")])
     assert code == 2 and "--out must be a .png, .pdf or .svg file" in err
@@ -316,8 +316,8 @@ def _jscc_checkpoint(folder, scale=1.0):
 
 @pytest.mark.slow
 def test_jscc_curves_write_only_the_paths_named(tmp_path, capsys):
+    from semuav_jax.cli.jscc import main
     from semuav_jax.curves import load_curves
-    from semuav_jax.jscc.__main__ import main
 
     _jscc_checkpoint(tmp_path / "ckpt")
     (tmp_path / "d").mkdir()
@@ -346,7 +346,7 @@ def test_jscc_curves_write_only_the_paths_named(tmp_path, capsys):
 @pytest.mark.slow
 def test_jscc_curves_of_a_non_finite_checkpoint_write_nothing(tmp_path, capsys):
     """A NaN model neither replaces the user's deepjscc.msgpack beside --out nor writes curves."""
-    from semuav_jax.jscc.__main__ import main
+    from semuav_jax.cli.jscc import main
 
     _jscc_checkpoint(tmp_path / "ckpt", jnp.nan)
     (tmp_path / "d").mkdir()
@@ -399,8 +399,8 @@ def test_baselines_report_checks_options_and_paths_first(tmp_path, argv, msg):
 
 @pytest.mark.slow
 def test_jscc_train_that_diverges_exits_2_and_saves_nothing(tmp_path, capsys, monkeypatch):
+    from semuav_jax.cli.jscc import main
     from semuav_jax.jscc import data
-    from semuav_jax.jscc.__main__ import main
 
     monkeypatch.setattr(
         data, "builtin_train_photos", lambda: [np.random.default_rng(0).random((40, 40, 3), dtype=np.float32)]

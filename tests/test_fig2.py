@@ -116,7 +116,7 @@ def test_eval_out_untouched_by_a_failed_check_and_foreign_files_refused(tmp_path
 
 @pytest.mark.slow
 def test_figures(reduced, tmp_path):
-    from semuav_jax import figures
+    from semuav_jax.experiments import figures
 
     params, r, *_ = reduced
     figures.fig2a(r, tmp_path / "a.png")
@@ -234,7 +234,7 @@ def test_eval_out_or_agent_that_cannot_be_used_is_one_line(tmp_path, capsys):
     (run / "config.json").write_text(json.dumps(config))
     code, err = _eval_main(capsys, "--out", str(tmp_path / "o"), "--agent", str(run))
     assert code == 2 and "is not a train.py run config" in err and err.count("\n") == 1, err
-    from semuav_jax.experiments.learned import main as compare
+    from semuav_jax.cli.compare import main as compare
 
     assert compare([str(run)]) == 2 and "is not a train.py run config" in capsys.readouterr().err
 

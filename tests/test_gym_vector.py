@@ -94,7 +94,7 @@ def test_next_step_autoreset(curves):
 def test_episode_metrics_on_the_final_step(curves):
     env = SemUAVVectorEnv(num_envs=E, curves=curves, K=K)
     env.reset(seed=2)
-    for t in range(K):
+    for _ in range(K):
         _, _, term, _, info = env.step(np.zeros(E, np.int64))
     assert term.all() and info["_mean_psnr"].all()
     np.testing.assert_allclose(info["mean_psnr"], np.asarray(env.state.phi).mean(-1), rtol=1e-6)

@@ -8,12 +8,14 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from semuav_jax.cli.jscc import main
 from semuav_jax.curves import load_curves, save_curves
 from semuav_jax.jscc import M, data, power_normalize, prefix_mask, quantize_iq, truncate
-from semuav_jax.jscc.__main__ import main
-from semuav_jax.jscc.evaluate import default_model_path, load_model, sha256_file
+from semuav_jax.jscc.config import TrainConfig
+from semuav_jax.jscc.evaluate import default_model_path, load_model
 from semuav_jax.jscc.model import DeepJSCC, latent_to_symbols, received_plane, symbols_to_latent
-from semuav_jax.jscc.train import TrainConfig, train
+from semuav_jax.jscc.train import train
+from semuav_jax.provenance import file_hash
 
 
 def _complex(key, shape):
@@ -220,7 +222,7 @@ def test_shipped_curves_meet_acceptance():
     for key in ("image_shape", "ratio", "bits_per_symbol", "train_snr_db", "dataset", "model_hash"):
         assert key in cv.meta
     assert cv.meta["bits_per_symbol"] == 16
-    assert cv.meta["model_hash"] == sha256_file(default_model_path())
+    assert cv.meta["model_hash"] == file_hash(default_model_path())
     net, params = load_model()
     assert isinstance(net, DeepJSCC)
 

@@ -15,9 +15,9 @@ import pytest
 from flax import serialization
 
 from semuav_jax import io
+from semuav_jax.cli.jscc import main
 from semuav_jax.jscc import data
 from semuav_jax.jscc import train as train_mod
-from semuav_jax.jscc.__main__ import main
 from semuav_jax.jscc.train import (
     CKPT_FILE,
     CONFIG_FILE,

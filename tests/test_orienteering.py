@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from baselines import orienteering
+from baselines.dwell_knapsack import TIME_STEP_S
 from baselines.orienteering import PARALLEL_MIN_PROBLEMS, solve, solve_batch
 
 
@@ -73,7 +74,7 @@ def test_off_grid_service_times_stay_within_budget_and_near_optimal():
         travel, service, prize, budget = random_instance(rng, n=4, n_opt=3, grid=None)
         plan = solve(travel, service, prize, budget)
         check_plan(plan, travel, service, prize, budget)
-        rounded = np.ceil(service / orienteering.TIME_STEP_S) * orienteering.TIME_STEP_S
+        rounded = np.ceil(service / TIME_STEP_S) * TIME_STEP_S
         assert (
             brute_force(travel, rounded, prize, budget) - 1e-9
             <= plan[2]

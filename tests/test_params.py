@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from conftest import synthetic_curves
 
+from semuav_jax.actions import num_actions
 from semuav_jax.curves import PSNRCurves, load_curves, save_curves
 from semuav_jax.params import make_params, validate_params
 
@@ -18,7 +19,8 @@ def test_defaults_match_model_md(params):
         5,
         25,
     )
-    assert params.N == 10 and params.M == 256 and params.num_actions == 9
+    assert params.N == 10 and params.M == 256 and params.levels == 3
+    assert num_actions("table", params) == 9 and num_actions("waypoint", params) == 3 * 5 + 1  # eqs. 6.1, 6.2
     np.testing.assert_array_equal(params.q0, [0, 300])
     np.testing.assert_array_equal(params.q_fin, [1000, 300])
     np.testing.assert_array_equal(params.bs_pos, [500, 300])

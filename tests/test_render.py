@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 from matplotlib.figure import Figure
+from matplotlib.patches import Circle
 
 from semuav_jax.gym_adapter import SemUAVGymEnv
 from semuav_jax.gym_vector import SemUAVVectorEnv
-from semuav_jax.render import draw, ground_range, rgb_frame
+from semuav_jax.render import draw, rgb_frame
 
 K = 12
 
@@ -32,7 +33,8 @@ def test_title_shows_time_and_mean_psnr(params):
         title="greedy",
     )
     assert ax.get_title() == "greedy\nt =  18.5 s of 125 s   mean PSNR 21.46 dB"
-    assert ground_range(params) == pytest.approx(np.sqrt(105.0**2 - float(params.H) ** 2))
+    radius = np.sqrt(105.0**2 - float(params.H) ** 2)  # the range disc of every device (eq. 3.5)
+    assert {round(c.radius, 3) for c in ax.patches if isinstance(c, Circle) and c.get_fill()} == {round(radius, 3)}
 
 
 def test_frames_show_reception_and_the_uav(curves):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from test_control import time_home_by_hand
 
-from semuav_jax.actions import action_to_accel
+from semuav_jax.actions import action_to_accel, num_actions
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.shield import home_action, home_speed, shield
 from semuav_jax.agents.trainer import make_train
@@ -53,10 +53,10 @@ def test_home_action_points_home(params):
 
 def test_shield_overrides_only_when_late(params):
     s = reset_state(jax.random.key(0), params)  # t = 0 at q0: 125 s left, 52 s needed
-    for a in range(params.num_actions):
+    for a in range(num_actions("table", params)):
         assert int(shield(jnp.int32(a), s, params, 2.0)) == a
     late = s.replace(t=jnp.int32(params.K - 60))  # 29.5 s left after this slot
-    for a in range(params.num_actions):
+    for a in range(num_actions("table", params)):
         assert int(shield(jnp.int32(a), late, params, 2.0)) == 7
     # the boundary: time left after the slot equals time_home + margin
     need = float(time_home(s.q, s.v, params.v_max, params, cruise=home_speed(params))) + 2.0
@@ -78,8 +78,8 @@ def test_any_policy_arrives_with_the_shield(params):
     bandwidths, speed caps and acceleration bounds; without the shield most do not."""
     E = 256
     ks = jax.random.split(jax.random.key(3), 6)
-    draws = jax.random.randint(ks[0], (E, params.K), 0, params.num_actions)
-    const = jnp.repeat(jnp.arange(E) % params.num_actions, params.K).reshape(E, params.K)
+    draws = jax.random.randint(ks[0], (E, params.K), 0, num_actions("table", params))
+    const = jnp.repeat(jnp.arange(E) % num_actions("table", params), params.K).reshape(E, params.K)
     draws = jnp.where((jnp.arange(E) < E // 2)[:, None], draws, const)
     B = jax.random.uniform(ks[1], (E,), minval=2e3, maxval=50e3)
     v_max = jax.random.uniform(ks[2], (E,), minval=12.0, maxval=30.0)

@@ -53,7 +53,7 @@ def test_seed_metrics_is_a_loop_over_seeds_and_bandwidths():
     m = seed_metrics(network, nets, config, keys, params, bandwidths)
     for s in range(run.seeds):
         for j, b in enumerate(bandwidths):
-            one = evaluate_agent(network, jax.tree.map(lambda x: x[s], nets), config, keys, params.replace(B=b))
+            one = evaluate_agent(network, jax.tree.map(lambda x, s=s: x[s], nets), config, keys, params.replace(B=b))
             for k in ("mean_psnr", "arrived", "shield_share"):
                 np.testing.assert_array_equal(one[k], m[k][s, j])
 
@@ -62,7 +62,7 @@ def test_seed_metrics_is_a_loop_over_seeds_and_bandwidths():
 def test_validation_table_is_the_seeds_on_validation_layouts(capsys):
     """``learned --validation``: one row per seed, each the mean PSNR of that seed's greedy policy on
     the validation layouts (VALIDATION_SEED), not the test ones."""
-    from semuav_jax.experiments.learned import main
+    from semuav_jax.cli.compare import main
     from semuav_jax.keys import VALIDATION_SEED
 
     run, nets = load_run(shipped_folder())
@@ -73,7 +73,7 @@ def test_validation_table_is_the_seeds_on_validation_layouts(capsys):
     assert len(rows) == run.seeds
     network = q_network(params, config)
     for s, row in enumerate(rows):
-        w = jax.tree.map(lambda x: x[s], nets)
+        w = jax.tree.map(lambda x, s=s: x[s], nets)
         val = evaluate_agent(network, w, config, keys, params)["mean_psnr"].mean()
         test = evaluate_agent(network, w, config, episode_keys(TEST_SEED, 4), params)["mean_psnr"].mean()
         cell = float(row.split("|")[4])  # the 25 kHz column

@@ -15,7 +15,7 @@ import jax.numpy as jnp
 
 from semuav_jax import channel
 from semuav_jax.actions import device_order
-from semuav_jax.control import time_home, time_to_pass
+from semuav_jax.control import time_home, time_via
 from semuav_jax.observation import DEVICE_FEATURES, GLOBAL_FEATURES
 from semuav_jax.params import EnvParams
 
@@ -38,14 +38,6 @@ def table_features(obs):
     return jnp.concatenate([glob, near_goal, dev.reshape(dev.shape[:-2] + (-1,))], axis=-1)
 
 
-WAYPOINT_GLOBAL = 14
-WAYPOINT_DEVICE = 9
-
-
-def waypoint_size(params: EnvParams) -> int:
-    return WAYPOINT_GLOBAL + WAYPOINT_DEVICE * params.N
-
-
 def waypoint_features(state, params: EnvParams):
     """The input of a waypoint agent for one ``EnvState``: a flat float32 vector, entries in about [-1, 1].
 
@@ -60,7 +52,7 @@ def waypoint_features(state, params: EnvParams):
     lo, hi = jnp.min(params.C), jnp.max(params.C)
     span = jnp.maximum(hi - lo, 1e-6)
     goal = (params.q_fin - state.q) / area
-    hover = channel.rate(0.0, params.H, params.P_n, params.B, params) * params.tau / (params.beta * params.M)
+    hover = channel.rest_rate(params) * params.tau / (params.beta * params.M)
     glob = jnp.concatenate(
         [
             state.q / area,
@@ -79,12 +71,7 @@ def waypoint_features(state, params: EnvParams):
     off = (pos - state.q) / area
 
     def slack(p):
-        d = p - state.q
-        u = d / jnp.maximum(jnp.linalg.norm(d), 1e-6)
-        need = time_to_pass(state.q, state.v, p, SLACK_SPEED, params) + time_home(
-            p, SLACK_SPEED * u, SLACK_SPEED, params
-        )
-        return (left - need) / T
+        return (left - time_via(state.q, state.v, p, SLACK_SPEED, params)) / T
 
     phi = state.phi[order]
     top = params.C[state.dev_img[order], params.M]

@@ -21,23 +21,6 @@ RUN_FILES = (CONFIG_FILE, METRICS_FILE, CKPT_FILE, MODEL_FILE, EVAL_FILE, EVAL_M
 SHIPPED = "agent"  # the shipped run folder, semuav_jax/data/agent: the output of ``python train.py``
 
 
-def clear_run(folder) -> None:
-    """Delete a run folder's files (``RUN_FILES`` and their leftover temporary files); ValueError,
-    deleting nothing, if it holds anything else."""
-    from semuav_jax.io import remove_stale_temps
-
-    folder = Path(folder)
-    remove_stale_temps(folder, RUN_FILES)
-    foreign = sorted(p.name for p in folder.iterdir() if p.name not in RUN_FILES)
-    if foreign:
-        raise ValueError(
-            f"{folder} holds files that are not a run's ({', '.join(foreign)}); "
-            "refusing to overwrite it: choose another --out"
-        )
-    for name in RUN_FILES:
-        (folder / name).unlink(missing_ok=True)
-
-
 def finished(folder) -> bool:
     folder = Path(folder)
     return (folder / CONFIG_FILE).is_file() and (folder / MODEL_FILE).is_file()

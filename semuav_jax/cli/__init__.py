@@ -1,5 +1,8 @@
-"""The command-line programs (``semuav-train``, ``semuav-eval``; the root ``train.py`` and
-``eval.py`` are shims for them): the top floor, free to import every other part of the package."""
+"""The command-line programs, one module each: ``semuav-train`` (train.py), ``semuav-eval`` (eval.py),
+``semuav-sweep`` (sweep.py), ``semuav-jscc`` (jscc.py), ``semuav-baselines`` (baselines.py) and
+``semuav-compare`` (compare.py). The root ``train.py`` and ``eval.py``, ``python -m semuav_jax.jscc``,
+``python -m baselines.report`` and ``python -m semuav_jax.experiments.learned`` are shims for them.
+The top floor: free to import every other part of the package; nothing below imports it."""
 
 import sys
 from pathlib import Path

@@ -44,7 +44,8 @@ def parse_args(argv=None):
         "--validation-layouts",
         type=int,
         default=None,
-        help=f"layouts that choose v_b* (default: {FULL['validation_layouts']}; --quick: {QUICK['validation_layouts']})",
+        help=f"layouts that choose v_b* (default: {FULL['validation_layouts']}; "
+        f"--quick: {QUICK['validation_layouts']})",
     )
     p.add_argument("--bandwidths", type=float, nargs="+", default=None, help=f"Hz (default: {FULL['bandwidths']})")
     p.add_argument("--velocities", type=float, nargs="+", default=None, help=f"m/s (default: {FULL['velocities']})")
@@ -173,10 +174,9 @@ def _evaluate(args, results, curves, t0) -> int:
     import jax
     from tqdm import tqdm
 
-    from semuav_jax import figures
     from semuav_jax.agents.network import q_network
     from semuav_jax.agents.runs import MODEL_FILE, load_run
-    from semuav_jax.experiments import fig2
+    from semuav_jax.experiments import fig2, figures
     from semuav_jax.provenance import file_hash, provenance
 
     out = results.path

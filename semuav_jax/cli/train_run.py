@@ -21,7 +21,7 @@ METRIC_COLUMNS = ("seed", "chunk", "env_steps", "epsilon", "episodes", "loss", "
 def plot_curves(rows, path: Path, reference: dict | None = None) -> None:
     import matplotlib.pyplot as plt
 
-    from semuav_jax.figures import save_figure
+    from semuav_jax.io import save_figure
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
     for seed in sorted({r["seed"] for r in rows}):

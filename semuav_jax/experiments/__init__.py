@@ -1,2 +1,2 @@
-"""Experiments: the one place that knows the agents and the baselines together (Fig. 2 and the
+"""Experiments: the one place that knows the agents and the baselines together (Fig. 2 and its figures, the
 learned controller against the references)."""

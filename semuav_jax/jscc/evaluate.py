@@ -17,7 +17,7 @@ import numpy as np
 from flax import serialization
 
 from semuav_jax.curves import default_curves_path, load_curves, save_curves, validate_curves
-from semuav_jax.io import atomic_write, check_writable_folder
+from semuav_jax.io import atomic_write, check_writable_folder, save_figure
 from semuav_jax.jscc import data
 from semuav_jax.jscc.model import BITS_PER_SYMBOL, IMAGE_SHAPE, IQ_CLIP, DeepJSCC, M, prefix_mask, quantize_iq, truncate
 from semuav_jax.jscc.train import load_checkpoint, load_config, make_optimizer, model_of
@@ -51,10 +51,6 @@ def load_model(path: str | os.PathLike | None = None):
     if not all(np.isfinite(np.asarray(w)).all() for w in jax.tree_util.tree_leaves(params)):
         raise ValueError(f"{path}: the model's weights are not finite")
     return model, params
-
-
-def sha256_file(path: str | os.PathLike) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def psnr(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -187,12 +183,9 @@ def make_figure(out: str | os.PathLike, model: str | os.PathLike | None = None, 
     ax.fill_between(k, cv.C.min(0), cv.C.max(0), color="C0", alpha=0.12, label="min-max")
     ax.fill_between(k, mean - std, mean + std, color="C0", alpha=0.3, label="±1 std")
     ax.plot(k, mean, color="C0", label=f"mean of {cv.num_images} test crops")
-    ax.set_xlabel("symbols received k (of M = %d)" % cv.M)
+    ax.set_xlabel(f"symbols received k (of M = {cv.M})")
     ax.set_ylabel("PSNR (dB)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="lower right")
     ax.set_title("DeepJSCC, ratio 1/6, 8-bit I/Q, noise-free", fontsize=8)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=90)
-    plt.close(fig)
-    return out
+    return save_figure(fig, out, dpi=90, layout=False, crop=False)

@@ -40,7 +40,7 @@ import optax
 
 from semuav_jax import checkpoint
 from semuav_jax.io import atomic_write
-from semuav_jax.jscc.config import CHANNELS, TrainConfig  # noqa: F401 - CHANNELS: re-exported
+from semuav_jax.jscc.config import TrainConfig
 from semuav_jax.jscc.data import sample_batch
 from semuav_jax.jscc.loss import make_optimizer, make_train_step, model_of, transmit  # noqa: F401 - transmit: re-exported
 from semuav_jax.jscc.model import IMAGE_SHAPE, M

@@ -1,9 +1,7 @@
-"""Figures of Fig. 2 (a, b, c) and the training curves, written atomically as PNG (docs/RESULTS.md)."""
+"""Figures of Fig. 2 (a, b, c) from the results of ``experiments/fig2.py``, written atomically as PNG
+(docs/RESULTS.md)."""
 
 from __future__ import annotations
-
-import io
-from pathlib import Path
 
 import matplotlib
 
@@ -12,7 +10,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 
-from semuav_jax.io import atomic_write  # noqa: E402
+from semuav_jax.control import range_radius  # noqa: E402
+from semuav_jax.io import save_figure  # noqa: E402
 from semuav_jax.stats import wilson_interval  # noqa: E402
 
 STYLE = {
@@ -27,15 +26,6 @@ STYLE = {
     "exact planner": dict(color="C4", marker="D", label="exact planner (receding horizon)"),
 }
 BANDS = ("agent", "greedy-dwell", "tsp-dwell", "planner", "exact planner")  # panel (b): policies with their own speed
-
-
-def save_figure(fig, path: Path, dpi: int = 120):
-    """Write ``fig`` as a PNG atomically and close it."""
-    buf = io.BytesIO()
-    fig.tight_layout()
-    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")  # keeps legends placed outside the axes
-    plt.close(fig)
-    atomic_write(path, buf.getvalue())
 
 
 def fig2a(r: dict, path):
@@ -119,7 +109,7 @@ def fig2c(paths: dict, params, path):
     seconds in range written beside it and drawn as a ring whose size grows with them."""
     names = [n for n in ("agent", "tsp v_b*", "greedy-dwell", "tsp-dwell", "planner", "exact planner") if n in paths]
     fig, axes = plt.subplots(2, 3, figsize=(17, 6.3), sharex=True, sharey=True)
-    radius = float(np.sqrt(float(params.D_com) ** 2 - float(params.H) ** 2))
+    radius = float(range_radius(params))
     pts = np.concatenate(
         [np.array([[0.0, 0.0], [float(params.Lx), float(params.Ly)]])] + [paths[n]["q"] for n in names]
     )
@@ -157,7 +147,4 @@ def fig2c(paths: dict, params, path):
         fontsize=10,
         y=0.99,
     )
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
-    plt.close(fig)
-    atomic_write(path, buf.getvalue())
+    save_figure(fig, path, dpi=110, layout=False)  # the colorbar spans all panels: no tight_layout
