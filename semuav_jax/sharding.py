@@ -7,6 +7,12 @@ this is a no-op. Force several host CPU devices with
 processes come from ``semuav_jax.distributed`` (docs/scaling.md). Every process builds the same
 whole batch (the same keys), so no key depends on how the episodes are split; each feeds its own
 rows, and :func:`gather` brings the results back to every process as NumPy arrays.
+
+XLA compiles a program for the shape each device holds, and on CPU the float rounding of an
+episode may change with that shape (another tiling of a product or a reduction).
+:func:`map_episodes` therefore runs every episode in a block of :func:`block_size` episodes, a
+size that depends on the batch only, never on the devices: the numbers are the same bits on any
+number of devices and processes.
 """
 
 from __future__ import annotations
@@ -18,6 +24,7 @@ from jax.experimental import multihost_utils
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 AXIS = "episodes"
+BLOCK = 64  # episodes per device in one call of map_episodes' program
 
 
 def episode_mesh() -> Mesh:
@@ -58,6 +65,30 @@ def shard_episodes(tree):
         return jax.tree.map(lambda x: _pad(jnp.asarray(x), size), tree)
     sharding = NamedSharding(episode_mesh(), PartitionSpec(AXIS))
     return jax.tree.map(lambda x: _put(_pad(jnp.asarray(x), size), sharding), tree)
+
+
+def block_size(n: int) -> int:
+    """Episodes per device and call in :func:`map_episodes` for a batch of n: ``min(BLOCK, n)``."""
+    return min(BLOCK, n)
+
+
+def map_episodes(fn, tree, axis: int = -1):
+    """``fn`` (a jitted function of a pytree of per-episode inputs, leading axis n) over blocks of
+    :func:`block_size` (n) episodes on each device of every process, the batch padded by repeating
+    its last entry; returns fn's leaves (episode axis ``axis``) for the n episodes, whole NumPy
+    arrays in every process. Episode i is always row i mod block of one block, whatever the devices."""
+    n = jax.tree.leaves(tree)[0].shape[0]
+    block, d = block_size(n), jax.device_count()
+    size = -(-n // (block * d)) * block * d
+    sharding = NamedSharding(episode_mesh(), PartitionSpec(AXIS)) if d > 1 else None
+    padded = jax.tree.map(lambda x: _pad(jnp.asarray(x), size), tree)
+    outs = []
+    for lo in range(0, size, block * d):  # device k of a call holds block lo / block + k
+        part = jax.tree.map(lambda x, lo=lo: x[lo : lo + block * d], padded)
+        outs.append(fn(part if sharding is None else jax.tree.map(lambda x: _put(x, sharding), part)))
+    outs = gather(outs)
+    take = lambda x: np.take(x, np.arange(n), axis=axis)
+    return jax.tree.map(lambda *xs: take(np.concatenate(xs, axis=axis)), *outs)
 
 
 def gather(tree):
