@@ -14,6 +14,7 @@ import pytest
 from semuav_jax.agents.ddqn import DDQNConfig, make_train
 from semuav_jax.agents.scenarios import scenario_params
 from semuav_jax.experiments import fig2
+from semuav_jax.experiments.behaviour import behaviour
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = {"bandwidths": (5e3, 25e3), "velocities": (8.9, 16.0), "layouts": 12, "validation_layouts": 6}
@@ -26,7 +27,7 @@ def test_behaviour_by_hand(params):
     m = np.zeros((1, 4, 2))
     m[0, -1] = [params.M / 2, 0.0]
     done = np.array([[False, False, True, True]])
-    b = fig2.behaviour({"v": v, "x": x, "m": m, "done": done}, params)
+    b = behaviour({"v": v, "x": x, "m": m, "done": done}, params)
     assert b["speed_transmitting"][0] == pytest.approx(7.5)  # slots 1-2
     assert b["speed_otherwise"][0] == pytest.approx(1.0)  # slot 3
     assert b["dwell_per_served_s"][0] == pytest.approx(2 * 0.5)  # device 0: two live slots in range

@@ -44,7 +44,8 @@ def parse_args(argv=None):
         "--validation-layouts",
         type=int,
         default=None,
-        help=f"layouts that choose v_b* (default: {FULL['validation_layouts']}; --quick: {QUICK['validation_layouts']})",
+        help=f"layouts that choose v_b* (default: {FULL['validation_layouts']}; "
+        f"--quick: {QUICK['validation_layouts']})",
     )
     p.add_argument("--bandwidths", type=float, nargs="+", default=None, help=f"Hz (default: {FULL['bandwidths']})")
     p.add_argument("--velocities", type=float, nargs="+", default=None, help=f"m/s (default: {FULL['velocities']})")
@@ -152,7 +153,8 @@ def _main(argv=None) -> int:
 
     t0 = time.time()
     try:
-        check_writable_folder(args.out)  # every path checked before any computation or write
+        if distributed.is_main():  # the one process that writes: every path checked before any computation
+            check_writable_folder(args.out)
         curves = load_curves(args.curves) if args.curves else None
         base = scenario_params("random", curves, reward_mode="gain")
         for b in args.grid["bandwidths"]:
