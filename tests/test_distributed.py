@@ -278,6 +278,14 @@ def eval_one(tmp_path_factory):
 
 
 @pytest.mark.slow
+def test_eval_quick_is_the_same_with_2_host_devices(eval_one, tmp_path):
+    two = single([*EVAL, "--out", str(tmp_path / "two")], devices=2, limit_s=1800)
+    assert two.returncode == 0, two.stderr[-2000:]
+    assert json.loads((tmp_path / "two" / "fig2.json").read_text())["devices"] == 2
+    assert _fig2(tmp_path / "two") == _fig2(eval_one) and _saved_steps(tmp_path / "two") == _saved_steps(eval_one)
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("devices", [1, 2])
 def test_eval_quick_is_the_same_on_2_processes(eval_one, tmp_path, devices):
     """eval.py --quick on a reduced grid, 2 processes of 1 or 2 devices: the same fig2.json, fig2.md and

@@ -1,10 +1,7 @@
 """Fig. 2's pipeline (semuav_jax/experiments/fig2.py, eval.py): behaviour measures by hand, properties
-of a reduced run, determinism, and the same numbers with 1 and 2 JAX host devices."""
+of a reduced run, determinism (the same numbers on 1 or 2 devices or processes: test_distributed.py)."""
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import jax
@@ -124,37 +121,6 @@ def test_figures(reduced, tmp_path):
     figures.fig2c(r["paths"], scenario_params("fixed").replace(B=25e3), tmp_path / "c.png")
     for f in ("a", "b", "c"):
         assert (tmp_path / f"{f}.png").stat().st_size > 10_000
-
-
-def _quick(out, devices):
-    env = {**os.environ, "XLA_FLAGS": f"--xla_force_host_platform_device_count={devices}"}
-    cmd = [
-        sys.executable,
-        str(ROOT / "eval.py"),
-        "--quick",
-        "--out",
-        str(out),
-        "--layouts",
-        "6",
-        "--validation-layouts",
-        "4",
-        "--bandwidths",
-        "25000",
-        "--velocities",
-        "8.9",
-        "--workers",
-        "1",
-    ]
-    res = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, env=env)
-    assert res.returncode == 0, res.stderr
-    r = json.loads((out / "fig2.json").read_text())
-    assert r["devices"] == devices
-    return {k: v for k, v in r.items() if k not in ("devices", "train_s", "eval_s")}
-
-
-@pytest.mark.slow
-def test_quick_is_the_same_with_1_and_2_host_devices(tmp_path):
-    assert _quick(tmp_path / "one", 1) == _quick(tmp_path / "two", 2)
 
 
 @pytest.mark.parametrize(
