@@ -74,21 +74,28 @@ def block_size(n: int) -> int:
 
 def map_episodes(fn, tree, axis: int = -1):
     """``fn`` (a jitted function of a pytree of per-episode inputs, leading axis n) over blocks of
-    :func:`block_size` (n) episodes on each device of every process, the batch padded by repeating
-    its last entry; returns fn's leaves (episode axis ``axis``) for the n episodes, whole NumPy
-    arrays in every process. Episode i is always row i mod block of one block, whatever the devices."""
+    :func:`block_size` (n) episodes, the batch padded by repeating its last entry; returns fn's
+    leaves (episode axis ``axis``) for the n episodes, whole NumPy arrays in every process.
+
+    Each process takes an equal share of the blocks and runs each block on one of its devices as a
+    single-device program (not one program partitioned over the devices, whose float results
+    differ in the last bits), so episode i is row i mod block of a block computed by the same
+    program whatever the devices and processes."""
     n = jax.tree.leaves(tree)[0].shape[0]
-    block, d = block_size(n), jax.device_count()
-    size = -(-n // (block * d)) * block * d
-    sharding = NamedSharding(episode_mesh(), PartitionSpec(AXIS)) if d > 1 else None
-    padded = jax.tree.map(lambda x: _pad(jnp.asarray(x), size), tree)
+    block, devices = block_size(n), jax.local_devices()
+    size = -(-n // (block * jax.device_count())) * block * jax.device_count()
+    padded = jax.tree.map(lambda x: np.asarray(_pad(jnp.asarray(x), size)), tree)
+    share = size // jax.process_count()
+    lo = jax.process_index() * share
     outs = []
-    for lo in range(0, size, block * d):  # device k of a call holds block lo / block + k
-        part = jax.tree.map(lambda x, lo=lo: x[lo : lo + block * d], padded)
-        outs.append(fn(part if sharding is None else jax.tree.map(lambda x: _put(x, sharding), part)))
-    outs = gather(outs)
-    take = lambda x: np.take(x, np.arange(n), axis=axis)
-    return jax.tree.map(lambda *xs: take(np.concatenate(xs, axis=axis)), *outs)
+    for j, start in enumerate(range(lo, lo + share, block)):  # dispatched asynchronously, one block per device
+        part = jax.tree.map(lambda x, start=start: x[start : start + block], padded)
+        outs.append(fn(jax.device_put(part, devices[j % len(devices)])))
+    mine = jax.tree.map(lambda *xs: np.concatenate([np.asarray(x) for x in xs], axis=axis), *outs)
+    if jax.process_count() > 1:  # (processes, ...) in process order, joined along the episode axis
+        everyone = multihost_utils.process_allgather(mine)
+        mine = jax.tree.map(lambda x: np.concatenate(list(x), axis=axis), everyone)
+    return jax.tree.map(lambda x: np.take(x, np.arange(n), axis=axis), mine)
 
 
 def gather(tree):

@@ -58,6 +58,26 @@ def test_two_processes_shard_gather_and_split_work(devices):
         assert r["all_true"] is True and r["only_0"] is False
 
 
+@pytest.mark.slow
+def test_an_episode_s_bits_depend_on_its_block_only(params):
+    """map_episodes (one process, one device): the first 64 of 70 episodes (blocks of 64) are the
+    bits of a batch of those 64; the episode axis may be first or last."""
+    import jax
+    import numpy as np
+
+    from baselines import sweep
+    from semuav_jax.sharding import BLOCK, map_episodes
+
+    keys = jax.random.split(jax.random.PRNGKey(5), BLOCK + 6)
+    m = sweep("greedy", keys, params, v_b=(8.9, 14.0))  # (B, v_b, E): episode axis last
+    m_block = sweep("greedy", keys[:BLOCK], params, v_b=(8.9, 14.0))
+    assert m["mean_psnr"].shape == (1, 2, BLOCK + 6) and np.ptp(m["mean_psnr"]) > 0
+    for k in m_block:
+        np.testing.assert_array_equal(m[k][..., :BLOCK], m_block[k], err_msg=k)
+    draw = jax.jit(jax.vmap(lambda k: jax.random.uniform(k, (3,))))
+    np.testing.assert_array_equal(map_episodes(draw, keys, axis=0), np.asarray(draw(keys)))
+
+
 def _options(argv):
     p = argparse.ArgumentParser()
     distributed.add_options(p)
