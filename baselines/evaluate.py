@@ -4,7 +4,7 @@
 metrics of MODEL.md section 8. ``baseline_metrics`` is a pure ``(keys, params, v_b, rank) ->
 metrics`` that vmaps over ``params.B`` and ``v_b`` without recompiling; ``sweep`` does exactly
 that for a grid, its episodes sharded over every device of every process (``semuav_jax.sharding``).
-TSP ranks come from OR-Tools outside jit (``tsp_ranks``), each process solving its share.
+TSP ranks are solved outside jit (``tsp_ranks``, ``baselines.tsp``), each process solving its share.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from baselines.policies import DEFAULT_V_B, POLICIES, init_state
 from semuav_jax.env import reset_state
 from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import rollout
-from semuav_jax.sharding import gather, shard_episodes, split_hosts
+from semuav_jax.sharding import map_episodes, split_hosts
 
 
 def resolve(policy):
@@ -40,17 +40,16 @@ def layouts(keys, params: EnvParams):
     return s.dev_pos, s.dev_img
 
 
-def tsp_ranks(keys, params: EnvParams, time_limit_ms: int = tsp_solver.DEFAULT_TIME_LIMIT_MS, workers: int = 2):
-    """Rank (E, N) of each device in the OR-Tools open path q0 -> devices -> q_fin of each episode."""
+def tsp_ranks(keys, params: EnvParams, workers: int = 2):
+    """Rank (E, N) of each device in the shortest open path q0 -> devices -> q_fin of each episode
+    (``baselines.tsp``: exact, or OR-Tools above its ``EXACT_MAX_DEVICES``)."""
     pos = np.asarray(layouts(keys, params)[0])
     q0, q_fin = np.asarray(params.q0), np.asarray(params.q_fin)
     if params.layout == "fixed":
-        order = tsp_solver.solve_order(pos[0], q0, q_fin, time_limit_ms)
+        order = tsp_solver.solve_order(pos[0], q0, q_fin)
         orders = np.broadcast_to(order, pos.shape[:2])
     else:  # each process solves its share of the layouts
-        orders = split_hosts(
-            lambda lo, hi: tsp_solver.solve_orders(pos[lo:hi], q0, q_fin, time_limit_ms, workers), len(pos)
-        )
+        orders = split_hosts(lambda lo, hi: tsp_solver.solve_orders(pos[lo:hi], q0, q_fin, workers), len(pos))
     return np.argsort(orders, axis=-1).astype(np.int32)
 
 
@@ -119,5 +118,5 @@ def sweep(policy, keys, params: EnvParams, v_b=(DEFAULT_V_B,), B=None, rank=None
         raise ValueError(f"B must be finite and > 0 Hz, got {B[~(np.isfinite(B) & (B > 0))][0]}")
     rank = _ranks(policy, keys, params, rank, **tsp_kwargs)
     B = jnp.asarray(B, jnp.float32)
-    skeys, srank = shard_episodes((jnp.asarray(keys), rank))
-    return {k: v[..., : len(keys)] for k, v in gather(_sweep(resolve(policy), skeys, params, v_b, B, srank)).items()}
+    policy = resolve(policy)
+    return map_episodes(lambda part: _sweep(policy, part[0], params, v_b, B, part[1]), (jnp.asarray(keys), rank))

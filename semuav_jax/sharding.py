@@ -7,6 +7,12 @@ this is a no-op. Force several host CPU devices with
 processes come from ``semuav_jax.distributed`` (docs/scaling.md). Every process builds the same
 whole batch (the same keys), so no key depends on how the episodes are split; each feeds its own
 rows, and :func:`gather` brings the results back to every process as NumPy arrays.
+
+XLA compiles a program for the shape each device holds, and on CPU the float rounding of an
+episode may change with that shape (another tiling of a product or a reduction).
+:func:`map_episodes` therefore runs every episode in a block of :func:`block_size` episodes, a
+size that depends on the batch only, never on the devices: the numbers are the same bits on any
+number of devices and processes.
 """
 
 from __future__ import annotations
@@ -18,6 +24,7 @@ from jax.experimental import multihost_utils
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 AXIS = "episodes"
+BLOCK = 64  # episodes per device in one call of map_episodes' program
 
 
 def episode_mesh() -> Mesh:
@@ -58,6 +65,37 @@ def shard_episodes(tree):
         return jax.tree.map(lambda x: _pad(jnp.asarray(x), size), tree)
     sharding = NamedSharding(episode_mesh(), PartitionSpec(AXIS))
     return jax.tree.map(lambda x: _put(_pad(jnp.asarray(x), size), sharding), tree)
+
+
+def block_size(n: int) -> int:
+    """Episodes per device and call in :func:`map_episodes` for a batch of n: ``min(BLOCK, n)``."""
+    return min(BLOCK, n)
+
+
+def map_episodes(fn, tree, axis: int = -1):
+    """``fn`` (a jitted function of a pytree of per-episode inputs, leading axis n) over blocks of
+    :func:`block_size` (n) episodes, the batch padded by repeating its last entry; returns fn's
+    leaves (episode axis ``axis``) for the n episodes, whole NumPy arrays in every process.
+
+    Each process takes an equal share of the blocks and runs each block on one of its devices as a
+    single-device program (not one program partitioned over the devices, whose float results
+    differ in the last bits), so episode i is row i mod block of a block computed by the same
+    program whatever the devices and processes."""
+    n = jax.tree.leaves(tree)[0].shape[0]
+    block, devices = block_size(n), jax.local_devices()
+    size = -(-n // (block * jax.device_count())) * block * jax.device_count()
+    padded = jax.tree.map(lambda x: np.asarray(_pad(jnp.asarray(x), size)), tree)
+    share = size // jax.process_count()
+    lo = jax.process_index() * share
+    outs = []
+    for j, start in enumerate(range(lo, lo + share, block)):  # dispatched asynchronously, one block per device
+        part = jax.tree.map(lambda x, start=start: x[start : start + block], padded)
+        outs.append(fn(jax.device_put(part, devices[j % len(devices)])))
+    mine = jax.tree.map(lambda *xs: np.concatenate([np.asarray(x) for x in xs], axis=axis), *outs)
+    if jax.process_count() > 1:  # (processes, ...) in process order, joined along the episode axis
+        everyone = multihost_utils.process_allgather(mine)
+        mine = jax.tree.map(lambda x: np.concatenate(list(x), axis=axis), everyone)
+    return jax.tree.map(lambda x: np.take(x, np.arange(n), axis=axis), mine)
 
 
 def gather(tree):

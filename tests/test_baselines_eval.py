@@ -54,7 +54,7 @@ def flights(params):
     s0 = jax.tree.map(lambda a, b: jnp.concatenate([a, b]), s0, s_hand)
     rank = np.concatenate(
         [
-            tsp_ranks(keys[:1000], params, time_limit_ms=10),
+            tsp_ranks(keys[:1000], params),
             np.argsort(solve_orders(_hand_layouts(), params.q0, params.q_fin), axis=1),
         ]
     )
@@ -78,7 +78,7 @@ def test_baselines_arrive_at_every_speed_and_stay_in_the_airspace(params, margin
     arrives at every v_b from 8.9 to 25 m/s; with an airspace margin of 0 none leaves the area."""
     p = params.replace(airspace_margin=np.inf if margin is None else margin)
     keys = jax.random.split(jax.random.PRNGKey(99), 300)
-    rank = tsp_ranks(keys, p, time_limit_ms=10)
+    rank = tsp_ranks(keys, p)
     for name in sorted(POLICIES):
         m = sweep(name, keys, p, v_b=[8.9, 11.0, 14.0, 17.0, 20.0, 22.5, 25.0], rank=rank)
         assert m["arrived"].mean(-1).min() >= 0.995, (name, m["arrived"].mean(-1))
@@ -117,7 +117,7 @@ def counted(policy):
 @pytest.mark.parametrize("policy", [greedy, tsp, straight], ids=["greedy", "tsp", "straight"])
 def test_bandwidth_x_velocity_sweep_is_one_program(policy, params):
     keys = jax.random.split(jax.random.PRNGKey(7), 24)
-    rank = tsp_ranks(keys, params, time_limit_ms=20)
+    rank = tsp_ranks(keys, params)
     chex.clear_trace_counter()
     fn = counted(policy)
     B = [5e3, 10e3, 20e3, 40e3]

@@ -23,20 +23,22 @@ PRIMITIVES = textwrap.dedent(
     distributed.add_options(p)
     distributed.initialize(p.parse_args())
     import jax, numpy as np
-    from semuav_jax.sharding import agree, gather, shard_episodes, split_hosts
+    from semuav_jax.sharding import agree, gather, map_episodes, shard_episodes, split_hosts
     keys = jax.random.split(jax.random.PRNGKey(3), 7)
     draw = jax.jit(jax.vmap(lambda k: jax.random.uniform(k, (3,))))
     sharded = shard_episodes(keys)
     u = gather(draw(sharded))
+    m = map_episodes(lambda k: {"u": draw(k).T, "rows": k.shape[0] + 0 * k[:, 0]}, keys)
     owner = split_hosts(lambda lo, hi: {"i": np.arange(lo, hi), "p": np.full(hi - lo, jax.process_index())}, 7)
-    plain = np.asarray(jax.vmap(lambda k: jax.random.uniform(k, (3,)))(keys))
-    local_rows = sum(s.data.shape[0] for s in sharded.addressable_shards)
-    print(json.dumps({"process": jax.process_index(), "processes": jax.process_count(), "devices": jax.device_count(),
-                      "padded": int(sharded.shape[0]), "local_rows": local_rows,
-                      "same": bool(np.array_equal(u[:7], plain)),
-                      "padding_repeats_last": bool(np.array_equal(u[7:], np.repeat(u[6:7], len(u) - 7, 0))),
-                      "index": owner["i"].tolist(), "owner": owner["p"].tolist(),
-                      "all_true": agree(True), "only_0": agree(jax.process_index() == 0)}))
+    r = {"process": jax.process_index(), "processes": jax.process_count(), "devices": jax.device_count()}
+    r["padded"] = int(sharded.shape[0])
+    r["local_rows"] = sum(s.data.shape[0] for s in sharded.addressable_shards)
+    r["same"] = bool(np.array_equal(u[:7], np.asarray(jax.vmap(lambda k: jax.random.uniform(k, (3,)))(keys))))
+    r["padding_repeats_last"] = bool(np.array_equal(u[7:], np.repeat(u[6:7], len(u) - 7, 0)))
+    r["blocks_same"], r["block_rows"] = bool(np.array_equal(m["u"], u[:7].T)), m["rows"].tolist()
+    r["index"], r["owner"] = owner["i"].tolist(), owner["p"].tolist()
+    r["all_true"], r["only_0"] = agree(True), agree(jax.process_index() == 0)
+    print(json.dumps(r))
     """
 )
 
@@ -50,8 +52,30 @@ def test_two_processes_shard_gather_and_split_work(devices):
         assert r["process"] == i and r["processes"] == 2 and r["devices"] == 2 * devices
         assert r["padded"] == 8 and r["local_rows"] == 4  # 7 episodes padded to 8, half in each process
         assert r["same"] and r["padding_repeats_last"]  # the keys' draws do not depend on the split
+        # fixed-size blocks (episode axis last here): 7 episodes, blocks of 7 on each of the 2 or 4 devices
+        assert r["blocks_same"] and r["block_rows"] == [7 * 2 * devices] * 7
         assert r["index"] == list(range(7)) and r["owner"] == [0, 0, 0, 0, 1, 1, 1]
         assert r["all_true"] is True and r["only_0"] is False
+
+
+@pytest.mark.slow
+def test_an_episode_s_bits_depend_on_its_block_only(params):
+    """map_episodes (one process, one device): the first 64 of 70 episodes (blocks of 64) are the
+    bits of a batch of those 64; the episode axis may be first or last."""
+    import jax
+    import numpy as np
+
+    from baselines import sweep
+    from semuav_jax.sharding import BLOCK, map_episodes
+
+    keys = jax.random.split(jax.random.PRNGKey(5), BLOCK + 6)
+    m = sweep("greedy", keys, params, v_b=(8.9, 14.0))  # (B, v_b, E): episode axis last
+    m_block = sweep("greedy", keys[:BLOCK], params, v_b=(8.9, 14.0))
+    assert m["mean_psnr"].shape == (1, 2, BLOCK + 6) and np.ptp(m["mean_psnr"]) > 0
+    for k in m_block:
+        np.testing.assert_array_equal(m[k][..., :BLOCK], m_block[k], err_msg=k)
+    draw = jax.jit(jax.vmap(lambda k: jax.random.uniform(k, (3,))))
+    np.testing.assert_array_equal(map_episodes(draw, keys, axis=0), np.asarray(draw(keys)))
 
 
 def _options(argv):
@@ -211,40 +235,101 @@ def test_sweep_items_of_two_invocations_merge_to_one_invocation(tmp_path):
     assert "(done before)" in again.stdout
 
 
+EVAL = [
+    str(ROOT / "eval.py"),
+    "--quick",
+    "--layouts",
+    "6",
+    "--validation-layouts",
+    "4",
+    "--bandwidths",
+    "25000",
+    "--velocities",
+    "8.9",
+    "--workers",
+    "1",
+]
+
+# runs a script (argv[1]) recording every write, rename, removal or folder made under --out in a JSON
+# list (argv[2] with the process id: PATH.I.json), so a test sees which process touched the folder
+WATCHED = textwrap.dedent(
+    """
+    import atexit, json, os, runpy, sys
+    log, script, args = sys.argv[2], sys.argv[1], sys.argv[3:]
+    out = os.path.realpath(args[args.index("--out") + 1])
+    me = args[args.index("--process-id") + 1] if "--process-id" in args else "0"
+    seen = []
+    WRITE = os.O_WRONLY | os.O_RDWR | os.O_CREAT | os.O_TRUNC | os.O_APPEND
+    CHANGE = ("os.rename", "os.remove", "os.mkdir", "os.rmdir", "os.truncate", "os.link", "os.symlink", "shutil.rmtree")
+
+    def under(p):
+        if isinstance(p, (str, bytes, os.PathLike)):
+            p = os.path.realpath(os.fsdecode(p))
+            return p == out or p.startswith(out + os.sep)
+        return False
+
+    def hook(event, a):
+        if (event == "open" and a[2] & WRITE and under(a[0])) or (event in CHANGE and any(map(under, a[:2]))):
+            seen.append([event, *map(str, a[:2])])
+
+    sys.addaudithook(hook)
+    atexit.register(lambda: open(f"{log}.{me}.json", "w").write(json.dumps(seen)))
+    sys.argv = [script, *args]
+    runpy.run_path(script, run_name="__main__")
+    """
+)
+
+
 def _fig2(out):
     r = json.loads((out / "fig2.json").read_text())
     return {k: v for k, v in r.items() if k not in ("devices", "train_s", "eval_s")}
 
 
-@pytest.mark.slow
-@pytest.mark.xfail(reason="time-limited OR-Tools tours and per-shape float reductions (docs/scaling.md)", strict=False)
-def test_eval_quick_is_the_same_on_2_processes(tmp_path):
-    """eval.py --quick on a reduced grid: the same fig2.json, fig2.md and saved steps as one process."""
-    cmd = [
-        str(ROOT / "eval.py"),
-        "--quick",
-        "--layouts",
-        "6",
-        "--validation-layouts",
-        "4",
-        "--bandwidths",
-        "25000",
-        "--velocities",
-        "8.9",
-        "--workers",
-        "1",
-        "--out",
-    ]
-    one = single([*cmd, str(tmp_path / "one")], limit_s=1200)
+def _saved_steps(out):
+    return {p.name: p.read_bytes() for p in sorted((out / "stages").glob("*.msgpack"))}
+
+
+@pytest.fixture(scope="module")
+def eval_one(tmp_path_factory):
+    out = tmp_path_factory.mktemp("eval") / "one"
+    one = single([*EVAL, "--out", str(out)], limit_s=1800)
     assert one.returncode == 0, one.stderr[-2000:]
-    codes, texts = run([*cmd, str(tmp_path / "two")], 2, limit_s=1200)
+    return out
+
+
+@pytest.mark.slow
+def test_eval_quick_is_the_same_with_2_host_devices(eval_one, tmp_path):
+    two = single([*EVAL, "--out", str(tmp_path / "two")], devices=2, limit_s=1800)
+    assert two.returncode == 0, two.stderr[-2000:]
+    assert json.loads((tmp_path / "two" / "fig2.json").read_text())["devices"] == 2
+    assert _fig2(tmp_path / "two") == _fig2(eval_one) and _saved_steps(tmp_path / "two") == _saved_steps(eval_one)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("devices", [1, 2])
+def test_eval_quick_is_the_same_on_2_processes(eval_one, tmp_path, devices):
+    """eval.py --quick on a reduced grid, 2 processes of 1 or 2 devices: the same fig2.json, fig2.md and
+    saved steps (bytes) as 1 process of 1 device; process 1 writes nothing in --out. Run again
+    (--overwrite): both processes find every step saved (process 1 through its read-only view of
+    the folder) and give the same files."""
+    out = tmp_path / "two"
+    cmd = ["-c", WATCHED, EVAL[0], str(tmp_path / "writes"), *EVAL[1:], "--out", str(out)]
+    codes, texts = run(cmd, 2, limit_s=1800, devices=devices)
     assert codes == [0, 0], [t[1][-2000:] for t in texts]
-    assert _fig2(tmp_path / "two") == _fig2(tmp_path / "one")
-    assert (tmp_path / "two" / "fig2.md").read_text() == (tmp_path / "one" / "fig2.md").read_text()
-    steps = sorted(p.name for p in (tmp_path / "one" / "stages").glob("*.msgpack"))
-    assert steps and steps == sorted(p.name for p in (tmp_path / "two" / "stages").glob("*.msgpack"))
-    for name in steps:
-        assert (tmp_path / "two" / "stages" / name).read_bytes() == (tmp_path / "one" / "stages" / name).read_bytes()
+    assert _fig2(out) == _fig2(eval_one)
+    assert (out / "fig2.md").read_text() == (eval_one / "fig2.md").read_text()
+    steps = _saved_steps(eval_one)
+    assert len(steps) == 7 and _saved_steps(out) == steps
+    writes = [json.loads((tmp_path / f"writes.{i}.json").read_text()) for i in (0, 1)]
+    assert writes[1] == [] and len(writes[0]) > 10, writes
+    assert "wrote" in texts[0][0] and "wrote" not in texts[1][0]
+
+    codes, texts = run([*cmd, "--overwrite"], 2, limit_s=900, devices=devices)
+    assert codes == [0, 0], [t[1][-2000:] for t in texts]
+    for _, err in texts:  # the 7 steps loaded in both processes, only the paths recomputed
+        assert err.count("(saved before)") == 7, err[-2000:]
+    assert _fig2(out) == _fig2(eval_one) and _saved_steps(out) == steps
+    assert json.loads((tmp_path / "writes.1.json").read_text()) == []
 
 
 @pytest.mark.slow

@@ -1,10 +1,7 @@
 """Fig. 2's pipeline (semuav_jax/experiments/fig2.py, eval.py): behaviour measures by hand, properties
-of a reduced run, determinism, and the same numbers with 1 and 2 JAX host devices."""
+of a reduced run, determinism (the same numbers on 1 or 2 devices or processes: test_distributed.py)."""
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import jax
@@ -15,6 +12,7 @@ from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.scenarios import scenario_params
 from semuav_jax.agents.trainer import make_train
 from semuav_jax.experiments import fig2
+from semuav_jax.experiments.behaviour import behaviour
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = {"bandwidths": (5e3, 25e3), "velocities": (8.9, 16.0), "layouts": 12, "validation_layouts": 6}
@@ -27,7 +25,7 @@ def test_behaviour_by_hand(params):
     m = np.zeros((1, 4, 2))
     m[0, -1] = [params.M / 2, 0.0]
     done = np.array([[False, False, True, True]])
-    b = fig2.behaviour({"v": v, "x": x, "m": m, "done": done}, params)
+    b = behaviour({"v": v, "x": x, "m": m, "done": done}, params)
     assert b["speed_transmitting"][0] == pytest.approx(7.5)  # slots 1-2
     assert b["speed_otherwise"][0] == pytest.approx(1.0)  # slot 3
     assert b["dwell_per_served_s"][0] == pytest.approx(2 * 0.5)  # device 0: two live slots in range
@@ -124,37 +122,6 @@ def test_figures(reduced, tmp_path):
     figures.fig2c(r["paths"], scenario_params("fixed").replace(B=25e3), tmp_path / "c.png")
     for f in ("a", "b", "c"):
         assert (tmp_path / f"{f}.png").stat().st_size > 10_000
-
-
-def _quick(out, devices):
-    env = {**os.environ, "XLA_FLAGS": f"--xla_force_host_platform_device_count={devices}"}
-    cmd = [
-        sys.executable,
-        str(ROOT / "eval.py"),
-        "--quick",
-        "--out",
-        str(out),
-        "--layouts",
-        "6",
-        "--validation-layouts",
-        "4",
-        "--bandwidths",
-        "25000",
-        "--velocities",
-        "8.9",
-        "--workers",
-        "1",
-    ]
-    res = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, env=env)
-    assert res.returncode == 0, res.stderr
-    r = json.loads((out / "fig2.json").read_text())
-    assert r["devices"] == devices
-    return {k: v for k, v in r.items() if k not in ("devices", "train_s", "eval_s")}
-
-
-@pytest.mark.slow
-def test_quick_is_the_same_with_1_and_2_host_devices(tmp_path):
-    assert _quick(tmp_path / "one", 1) == _quick(tmp_path / "two", 2)
 
 
 @pytest.mark.parametrize(

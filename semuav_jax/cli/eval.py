@@ -153,7 +153,8 @@ def _main(argv=None) -> int:
 
     t0 = time.time()
     try:
-        check_writable_folder(args.out)  # every path checked before any computation or write
+        if distributed.is_main():  # the one process that writes: every path checked before any computation
+            check_writable_folder(args.out)
         curves = load_curves(args.curves) if args.curves else None
         base = scenario_params("random", curves, reward_mode="gain")
         for b in args.grid["bandwidths"]:

@@ -122,7 +122,7 @@ def paper_layout_traces(network, nets, config, fixed: EnvParams, tuned: dict) ->
     """{panel title: trace} of seed 0 of the agent, greedy and TSP at their tuned speeds ``tuned``
     ({"greedy": v, "tsp": v}, plus "tsp-dwell": (v_c, k*, margin) when known), the open-loop and
     the exact planner, one episode each on ``fixed``'s layout (test key 0, as Fig. 2c)."""
-    from semuav_jax.experiments.fig2 import traced_runs
+    from semuav_jax.experiments.behaviour import traced_runs
     from semuav_jax.keys import TEST_SEED, episode_keys
 
     runs = traced_runs(

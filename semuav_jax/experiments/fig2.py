@@ -7,8 +7,9 @@ and at v_b*, greedy-dwell and TSP-dwell at their tuned knobs, the open-loop and 
 (c) the paper layout at 25 kHz: the trajectories, coloured by speed, with each device's dwell.
 
 Every point uses the same test layouts (``keys.TEST_SEED``); v_b* is chosen on validation layouts
-(``keys.VALIDATION_SEED``). :func:`behaviour` measures what explains the numbers: speed while
-transmitting and otherwise, dwell and symbols per served device, devices covered.
+(``keys.VALIDATION_SEED``). ``experiments.behaviour`` measures what explains the numbers. Every
+step is saved (``experiments.stages``); the numbers are the same bits on any number of devices and
+processes (docs/scaling.md).
 """
 
 from __future__ import annotations
@@ -17,19 +18,18 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from baselines import DEFAULT_V_B, init_state, receding, sweep, tsp_ranks
-from baselines.dwell import DWELL_POLICIES, init_dwell
-from baselines.planner import PlanState, make_plans, planner
-from baselines.policies import POLICIES
+from baselines import DEFAULT_V_B, sweep, tsp_ranks
+from baselines.dwell import DWELL_POLICIES
+from baselines.planner import PlanState, make_plans
 from baselines.report import flights, tune
 from semuav_jax.agents.config import DDQNConfig
-from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.policy import greedy_policy
+from semuav_jax.experiments.behaviour import behaviour, path, summarize, traced_runs
 from semuav_jax.experiments.stages import Stages
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams
 from semuav_jax.rollout import rollout
-from semuav_jax.sharding import split_hosts
+from semuav_jax.sharding import map_episodes, split_hosts
 from semuav_jax.stats import mean_ci, pm
 
 BANDWIDTHS = (5e3, 10e3, 15e3, 20e3, 25e3, 30e3, 35e3, 40e3)
@@ -42,84 +42,6 @@ QUICK = {
     "layouts": 300,
     "validation_layouts": 100,
 }
-
-
-def behaviour(trace: dict, params: EnvParams) -> dict:
-    """Per-episode quantities (E,) of a traced rollout that explain its PSNR: mean speed in the slots
-    with some device transmitting and in the others (m/s), dwell (s in range) and symbols (share of M)
-    per served device, devices covered, mission time."""
-    v = np.linalg.norm(np.asarray(trace["v"]), axis=-1)  # (E, K)
-    done = np.asarray(trace["done"])
-    live = np.concatenate([np.ones_like(done[:, :1]), ~done[:, :-1]], axis=1)
-    x = np.asarray(trace["x"])  # (E, K, N)
-    tx = x.any(-1) & live
-    idle = ~x.any(-1) & live
-    m = np.asarray(trace["m"])[:, -1]  # (E, N) symbols at the end
-    served = m > 0
-    dwell = (x & live[..., None]).sum(1) * float(params.tau)
-    n_served = np.maximum(served.sum(-1), 1)
-    return {
-        "speed_transmitting": (v * tx).sum(1) / np.maximum(tx.sum(1), 1),
-        "speed_otherwise": (v * idle).sum(1) / np.maximum(idle.sum(1), 1),
-        "dwell_per_served_s": (dwell * served).sum(-1) / n_served,
-        "symbols_per_served": (m / params.M * served).sum(-1) / n_served,
-        "coverage": served.sum(-1).astype(float),
-        "mission_time_s": live.sum(1) * float(params.tau),
-    }
-
-
-def summarize(per_episode: dict) -> dict:
-    """Mean and t half-width (95 %) of every per-episode quantity."""
-    return {k: mean_ci(v) for k, v in per_episode.items()}
-
-
-def traced_runs(
-    network,
-    nets,
-    config: DDQNConfig,
-    keys,
-    params: EnvParams,
-    tuned_speeds: dict,
-    workers: int = 2,
-    rank=None,
-    plan=None,
-):
-    """Traced rollouts at ``params.B``: each agent seed, greedy and TSP at 8.9 m/s and at v_b*
-    (``tuned_speeds``: name -> v_b*, and the dwell rules' name -> (v_c, k*, margin)), the dwell rules,
-    the planner and the exact planner. ``rank`` (TSP ranks of ``keys``) and ``plan`` (the planner's
-    PlanState at ``params.B``) are solved here unless given.
-    Returns {name: (metrics, trace)}."""
-    runs = {}
-    for s in range(jax.tree.leaves(nets)[0].shape[0]):
-        net = jax.tree.map(lambda x: x[s], nets)
-        runs[f"agent seed {s}"] = rollout(
-            greedy_policy(network, config), keys, params, net, trace=True, state_axes=None
-        )
-    ranks = {
-        "greedy": np.broadcast_to(np.arange(params.N, dtype=np.int32), (len(keys), params.N)),
-        "tsp": tsp_ranks(keys, params, workers=workers) if rank is None else rank,
-    }
-    for name in ("greedy", "tsp"):
-        for label, v in ((f"{name} {DEFAULT_V_B:g}", DEFAULT_V_B), (f"{name} v_b*", tuned_speeds[name])):
-            states = jax.vmap(init_state, (None, 0))(jnp.float32(v), jnp.asarray(ranks[name]))
-            runs[label] = rollout(POLICIES[name], keys, params, states, trace=True)
-    for name, policy in ((n, f) for n, f in DWELL_POLICIES.items() if n in tuned_speeds):
-        states = jax.vmap(init_dwell, (None, None, None, 0))(*tuned_speeds[name], jnp.asarray(ranks["tsp"]))
-        runs[name] = rollout(policy, keys, params, states, trace=True)
-    plan = make_plans(keys, params, workers=workers) if plan is None else plan
-    runs["planner"] = rollout(planner, keys, params, plan, trace=True)
-    runs["exact planner"] = receding.fly(keys, params, workers=workers, trace=True)
-    return {k: jax.tree.map(np.asarray, v) for k, v in runs.items()}
-
-
-def path(trace: dict, metrics: dict, i: int, params: EnvParams) -> dict:
-    """Episode i of a traced run as drawn in panel (c): positions (slots + 1, 2) from q0, speeds,
-    seconds in range of each device, and the final metrics."""
-    slots = int(round(float(metrics["mission_time"][i]) / float(params.tau)))
-    q = np.concatenate([np.asarray(params.q0)[None], trace["q"][i, :slots]])
-    v = np.concatenate([[0.0], np.linalg.norm(trace["v"][i, :slots], axis=-1)])
-    dwell = trace["x"][i, :slots].sum(0) * float(params.tau)
-    return {"q": q, "speed": v, "dwell_s": dwell, **{k: float(np.asarray(m)[i]) for k, m in metrics.items()}}
 
 
 def khz(b: float) -> str:
@@ -154,6 +76,17 @@ def shared_plans(keys, params: EnvParams, workers: int = 2) -> PlanState:
     """``make_plans`` of the episodes ``keys``, each process planning its share (one plan per episode)."""
     plan = split_hosts(lambda lo, hi: _plan_dict(make_plans(keys[lo:hi], params, workers=workers)), len(keys))
     return PlanState(**{k: jnp.asarray(v) for k, v in plan.items()})
+
+
+def agent_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams, bandwidths) -> dict:
+    """Per-episode metrics (seeds, len(bandwidths), E) of the greedy policy of every seed of ``nets``
+    at every B: ``agents.evaluate.seed_metrics`` run in fixed-size blocks of episodes
+    (``sharding.map_episodes``), so the bits do not depend on the devices and processes."""
+    policy = greedy_policy(network, config)
+    at = lambda net, b, k: rollout(policy, k, params.replace(B=b), net, state_axes=None)[0]
+    run = jax.jit(jax.vmap(jax.vmap(at, (None, 0, None)), (0, None, None)))
+    B = jnp.asarray(bandwidths, jnp.float32)
+    return map_episodes(lambda k: run(nets, B, k), keys)
 
 
 def run(
@@ -193,9 +126,12 @@ def run(
     ]
     refs = stage(
         "references flown (greedy, TSP at 8.9 m/s and v_b*; greedy-dwell, TSP-dwell; both planners)",
-        lambda: flights(params, keys, tuned, sweep_B, workers, rank=rank, plans=plans),
+        lambda: [  # without the planners' wall times: a saved step holds numbers that do not depend on the load
+            {name: {k: v for k, v in m.items() if k != "wall_s"} for name, m in row.items()}
+            for row in flights(params, keys, tuned, sweep_B, workers, rank=rank, plans=plans)
+        ],
     )
-    agent = stage("agent evaluated", lambda: seed_metrics(network, nets, config, keys, params, sweep_B))
+    agent = stage("agent evaluated", lambda: agent_metrics(network, nets, config, keys, params, sweep_B))
     out = {
         "layouts": len(keys),
         "test_seed": TEST_SEED,
@@ -258,7 +194,7 @@ def panel_b(keys, params: EnvParams, velocities, rank) -> dict:
     out = {}
     for name in ("greedy", "tsp"):
         m = sweep(name, keys, pb, v_b=velocities, B=(PANEL_B,), rank=rank if name == "tsp" else None)
-        per = lambda k: [m[k][0, i] for i in range(len(velocities))]
+        per = lambda k, m=m: [m[k][0, i] for i in range(len(velocities))]
         out[name] = {
             "mean_psnr": [mean_ci(x) for x in per("mean_psnr")],
             "arrived": [float(x.mean()) for x in per("arrived")],

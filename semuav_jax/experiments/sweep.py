@@ -34,7 +34,7 @@ from semuav_jax.curves import load_curves
 from semuav_jax.io import atomic_write
 from semuav_jax.provenance import file_hash
 from semuav_jax.rollout import rollout
-from semuav_jax.sharding import gather, shard_episodes
+from semuav_jax.sharding import map_episodes
 from semuav_jax.stats import mean_ci, wilson_interval
 
 KEYS = ("episodes", "seeds", "policies", "params", "scenario", "curves")
@@ -145,25 +145,19 @@ def run_item(grid: dict, item: dict) -> dict:
             if spec["baseline"] == "tsp"
             else np.broadcast_to(np.arange(params.N, dtype=np.int32), (len(keys), params.N))
         )
-        skeys, srank = shard_episodes((keys, jnp.asarray(rank)))
-        m = _baseline(resolve(spec["baseline"]), skeys, params, jnp.float32(spec["v_b"]), srank)
+        policy, v_b = resolve(spec["baseline"]), jnp.float32(spec["v_b"])
+        m = map_episodes(lambda part: _baseline(policy, part[0], params, v_b, part[1]), (keys, jnp.asarray(rank)))
     else:
         run, nets = load_run(spec["run"])
         config = run.agent
         if spec["seed"] >= len(jax.tree.leaves(nets)[0]):
             raise ValueError(f"policy {item['policy']!r}: the run has {len(jax.tree.leaves(nets)[0])} training seeds")
         net = jax.tree.map(lambda x: jnp.asarray(x[spec["seed"]]), nets)
-        m = rollout(
-            greedy_policy(q_network(params, config), config),
-            shard_episodes(keys),
-            params,
-            net,
-            state_axes=None,
-        )[0]
-    m = gather(m)
+        policy = greedy_policy(q_network(params, config), config)
+        m = map_episodes(lambda k: rollout(policy, k, params, net, state_axes=None)[0], keys)
     if not np.all(m.pop("valid")):
         raise ValueError(f"item {item['hash']}: the simulation left float32 at {item['point']}")
-    return {k: np.asarray(v)[: item["episodes"]].tolist() for k, v in m.items()}
+    return {k: v.tolist() for k, v in m.items()}
 
 
 _baseline = jax.jit(baseline_metrics, static_argnums=0)
