@@ -83,7 +83,7 @@ def compute_curves(model: DeepJSCC, params: Any, x: np.ndarray) -> np.ndarray:
 
 def write_curves(
     ckpt: str | os.PathLike, out: str | os.PathLike, model_out: str | os.PathLike | None = None
-) -> tuple[str | os.PathLike, np.ndarray, dict]:
+) -> tuple[Path, np.ndarray, dict]:
     """Evaluate the checkpoint in ``ckpt`` and write the curves .npz ``out`` and, when ``model_out``
     is given, the model .msgpack: both paths checked, the weights and the curves validated, before
     anything is written; no other file is touched."""
