@@ -234,7 +234,7 @@ class SemUAVEnv(environment.Environment[EnvState, EnvParams]):
         return self.get_obs(new, params), new, rew, new.done, info
 
 
-def make(env_id: str, actions: str = "table", **params) -> tuple[SemUAVEnv, EnvParams]:
+def make(env_id: str, actions: str = "table", **params: Any) -> tuple[SemUAVEnv, EnvParams]:
     """``(env, env_params)`` for an environment id, as ``gymnax.make``; ``actions`` is the action
     mode ("table", eq. 6.1, or "waypoint", eq. 6.2), ``params`` are ``make_params`` overrides."""
     if env_id != ENV_ID:

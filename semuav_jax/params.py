@@ -78,7 +78,7 @@ def make_params(
     N: int | None = None,
     device_pos: ArrayLike | None = None,
     device_img: ArrayLike | None = None,
-    **overrides,
+    **overrides: Any,
 ) -> EnvParams:
     """Build and validate :class:`EnvParams`.
 

@@ -44,7 +44,7 @@ PRESETS = {
 NOT_ENV = ("C", "device_pos", "device_img", "layout")
 
 
-def _f(default: Any, help: str, **meta) -> Any:
+def _f(default: Any, help: str, **meta: Any) -> Any:
     return dataclasses.field(default=default, metadata={"help": help, **meta})
 
 
@@ -94,7 +94,7 @@ class RunConfig:
 
     @classmethod
     def from_preset(
-        cls, preset: str = "default", env: dict | None = None, agent: dict | None = None, **run
+        cls, preset: str = "default", env: dict | None = None, agent: dict | None = None, **run: Any
     ) -> RunConfig:
         """The preset's env and agent parts with ``env`` / ``agent`` overrides and the run options ``run``."""
         if preset not in PRESETS:
@@ -115,7 +115,7 @@ class RunConfig:
         except (TypeError, KeyError) as e:
             raise ValueError(f"env: {e}") from None
 
-    def replace(self, **changes) -> RunConfig:
+    def replace(self, **changes: Any) -> RunConfig:
         return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict[str, Any]:
