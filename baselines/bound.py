@@ -18,6 +18,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.typing import ArrayLike
 
 from baselines.evaluate import layouts
 from semuav_jax import channel
@@ -35,7 +36,7 @@ def peak_rate(params: EnvParams) -> float:
 
 
 @jax.jit
-def _rates(r2, params: EnvParams):
+def _rates(r2: ArrayLike, params: EnvParams) -> jax.Array:
     return channel.rate(r2, params.H, params.P_n, params.B, params)
 
 
@@ -82,7 +83,7 @@ def _profile(c: np.ndarray, cap: int) -> np.ndarray:
     return f
 
 
-def knapsack(curves, budget: int) -> np.ndarray:
+def knapsack(curves: np.ndarray, budget: int) -> np.ndarray:
     """max Σ_n curves[..., n, k_n] over integers 0 ≤ k_n ≤ M with Σ_n k_n ≤ budget, exactly.
 
     ``curves`` (N, M + 1) or (E, N, M + 1): the curve of each device (any shape, not concave).
@@ -112,7 +113,7 @@ def knapsack(curves, budget: int) -> np.ndarray:
     return total[0] if single else total
 
 
-def _check_keys(keys):
+def _check_keys(keys: ArrayLike) -> jax.Array:
     keys = jnp.asarray(keys)
     typed = jax.dtypes.issubdtype(keys.dtype, jax.dtypes.prng_key)
     if not ((typed and keys.ndim == 1) or (not typed and keys.ndim == 2 and keys.dtype == jnp.uint32)):
@@ -122,7 +123,7 @@ def _check_keys(keys):
     return keys
 
 
-def psnr_bound(keys, params: EnvParams) -> np.ndarray:
+def psnr_bound(keys: jax.Array, params: EnvParams) -> np.ndarray:
     """(E,) per-episode upper bound (dB) on the final mean PSNR (eq. 8.1) of any policy on the
     episodes run with ``keys`` (their layouts' images; see the module docstring)."""
     keys = _check_keys(keys)

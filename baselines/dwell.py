@@ -14,16 +14,23 @@ tuning grid over them and the bandwidth is one compiled program (:func:`dwell_sw
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import partial
+from typing import TYPE_CHECKING
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from flax import struct
+from jax.typing import ArrayLike
 
 from semuav_jax.control import STOP_BRAKE, approach_speed, home_command, speed_command, time_via
 from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import rollout
+
+if TYPE_CHECKING:
+    from semuav_jax.env import EnvState
 
 
 @struct.dataclass
@@ -37,7 +44,7 @@ class DwellState:
     rank: jax.Array
 
 
-def init_dwell(v_c, k_star, margin, rank) -> DwellState:
+def init_dwell(v_c: ArrayLike, k_star: ArrayLike, margin: ArrayLike, rank: ArrayLike) -> DwellState:
     return DwellState(
         v_c=jnp.asarray(v_c, jnp.float32),
         k_star=jnp.asarray(k_star, jnp.float32),
@@ -46,7 +53,7 @@ def init_dwell(v_c, k_star, margin, rank) -> DwellState:
     )
 
 
-def candidates(ps: DwellState, s, params: EnvParams):
+def candidates(ps: DwellState, s: EnvState, params: EnvParams) -> jax.Array:
     """(N,) bool, eq. 7.9: devices short of k* symbols that still fit before flying home."""
     need = jax.vmap(lambda p: time_via(s.q, s.v, p, ps.v_c, params, stop=True))(s.dev_pos)
     left = (params.K - s.t) * params.tau
@@ -54,7 +61,7 @@ def candidates(ps: DwellState, s, params: EnvParams):
     return fits & (s.m < jnp.minimum(ps.k_star, params.M) - 1e-3)
 
 
-def _dwell(score, ps: DwellState, s, params: EnvParams):
+def _dwell(score: jax.Array, ps: DwellState, s: EnvState, params: EnvParams) -> tuple[jax.Array, DwellState]:
     """Eq. 7.10: rest over the candidate of lowest ``score``, else fly home."""
     cand = candidates(ps, s, params)
     i = jnp.argmin(jnp.where(cand, score, jnp.inf))
@@ -63,12 +70,12 @@ def _dwell(score, ps: DwellState, s, params: EnvParams):
     return jnp.where(jnp.any(cand), to_dev, home_command(s.q, s.v, ps.v_c, params)), ps
 
 
-def greedy_dwell(ps: DwellState, s, params: EnvParams):
+def greedy_dwell(ps: DwellState, s: EnvState, params: EnvParams) -> tuple[jax.Array, DwellState]:
     """Greedy-dwell: the nearest candidate (eq. 7.9)."""
     return _dwell(jnp.linalg.norm(s.dev_pos - s.q, axis=-1), ps, s, params)
 
 
-def tsp_dwell(ps: DwellState, s, params: EnvParams):
+def tsp_dwell(ps: DwellState, s: EnvState, params: EnvParams) -> tuple[jax.Array, DwellState]:
     """TSP-dwell: the first candidate of the TSP order ``ps.rank``."""
     return _dwell(ps.rank.astype(jnp.float32), ps, s, params)
 
@@ -76,7 +83,7 @@ def tsp_dwell(ps: DwellState, s, params: EnvParams):
 DWELL_POLICIES = {"greedy-dwell": greedy_dwell, "tsp-dwell": tsp_dwell}
 
 
-def check_knobs(v_c, k_star, margin, params: EnvParams):
+def check_knobs(v_c: ArrayLike, k_star: ArrayLike, margin: ArrayLike, params: EnvParams) -> list[jax.Array]:
     """The knob grids as float32 arrays, or a one-line ValueError naming the first bad value:
     v_c finite and > 0 m/s, k* in (0, M], margin finite (s; < 0 trusts eqs. 7.4-7.5, which over-estimate)."""
     out = []
@@ -95,21 +102,40 @@ def check_knobs(v_c, k_star, margin, params: EnvParams):
     return out
 
 
-def dwell_metrics(policy, keys, params: EnvParams, v_c, k_star, margin, rank):
+def dwell_metrics(
+    policy: Callable,
+    keys: jax.Array,
+    params: EnvParams,
+    v_c: jax.Array,
+    k_star: jax.Array,
+    margin: jax.Array,
+    rank: jax.Array,
+) -> dict[str, jax.Array]:
     """Pure episode metrics (dict of (E,)) of a dwell policy at traced knobs; vmap over any of them."""
     states = jax.vmap(init_dwell, in_axes=(None, None, None, 0))(v_c, k_star, margin, rank)
     return rollout(policy, keys, params, states)[0]
 
 
 @partial(jax.jit, static_argnames=("policy",))
-def _grid(policy, keys, params, knobs, B, rank):
-    def at(b, kn):
+def _grid(
+    policy: Callable, keys: jax.Array, params: EnvParams, knobs: jax.Array, B: jax.Array, rank: jax.Array
+) -> dict[str, jax.Array]:
+    def at(b: jax.Array, kn: jax.Array) -> dict[str, jax.Array]:
         return dwell_metrics(policy, keys, params.replace(B=b), kn[0], kn[1], kn[2], rank)
 
     return jax.vmap(lambda b: jax.lax.map(lambda kn: at(b, kn), knobs))(B)
 
 
-def dwell_sweep(name: str, keys, params: EnvParams, v_c, k_star, margin, B, rank) -> dict:
+def dwell_sweep(
+    name: str,
+    keys: jax.Array,
+    params: EnvParams,
+    v_c: ArrayLike,
+    k_star: ArrayLike,
+    margin: ArrayLike,
+    B: ArrayLike,
+    rank: ArrayLike,
+) -> dict:
     """Metrics (dict of (len(B), G, E) arrays) of ``name`` over the full grid v_c x k* x margin
     (G points, v_c slowest) at each bandwidth: one compiled program, the same episodes everywhere."""
     if name not in DWELL_POLICIES:
@@ -121,7 +147,7 @@ def dwell_sweep(name: str, keys, params: EnvParams, v_c, k_star, margin, B, rank
     return jax.tree.map(np.asarray, _grid(DWELL_POLICIES[name], keys, params, knobs, B, jnp.asarray(rank, jnp.int32)))
 
 
-def grid_points(v_c, k_star, margin) -> list[tuple[float, float, float]]:
+def grid_points(v_c: npt.ArrayLike, k_star: npt.ArrayLike, margin: npt.ArrayLike) -> list[tuple[float, float, float]]:
     """The (v_c, k*, margin) of each grid point, in :func:`dwell_sweep`'s order."""
     return [
         (float(a), float(b), float(c))

@@ -9,13 +9,14 @@ orienteering worker processes (``baselines/workers.py``) load it without JAX.
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 
 TIME_STEP_S = 0.05  # knapsack grid when no coarser one of _STEPS divides all service times
 _STEPS = (1.0, 0.5, 0.25, 0.2, 0.1, 0.05)
 ROUND_TOL = 1e-9  # in grid units / centiseconds: keeps e.g. 2.0 / 0.05 from rounding up to 41
 
 
-def grid_step(service) -> float:
+def grid_step(service: np.ndarray) -> float:
     """Largest of ``_STEPS`` dividing every service time (then the DP is exact), else ``TIME_STEP_S``."""
     for step in _STEPS:
         q = service / step
@@ -24,17 +25,17 @@ def grid_step(service) -> float:
     return TIME_STEP_S
 
 
-def capacity(slack, step: float):
+def capacity(slack: npt.ArrayLike, step: float) -> np.ndarray:
     """Whole grid steps within ``slack`` seconds (int64 of its shape)."""
     return np.floor(np.asarray(slack) / step + ROUND_TOL).astype(np.int64)
 
 
-def weights(service, step: float):
+def weights(service: np.ndarray, step: float) -> np.ndarray:
     """Service times in grid steps, rounded up (int64 of their shape)."""
     return np.ceil(service / step - ROUND_TOL).astype(np.int64)
 
 
-def subset_table(w, prize, cap):
+def subset_table(w: np.ndarray, prize: np.ndarray, cap: np.ndarray) -> tuple[np.ndarray, int]:
     """K (2^N, C + 1): K[S, c] the best prize of one option per device of subset S whose services
     take <= c steps (-inf: none fits), for every c <= the capacity any feasible superset of S reads,
     with ``cap`` (2^N,) the capacity of each subset (-1: infeasible) and C its useful maximum."""
@@ -62,7 +63,7 @@ def subset_table(w, prize, cap):
     return K, C
 
 
-def subset_options(K, w, prize, S: int, c: int) -> dict[int, int]:
+def subset_options(K: np.ndarray, w: np.ndarray, prize: np.ndarray, S: int, c: int) -> dict[int, int]:
     """{device: option} of subset ``S`` that reaches K[S, c] (undone from the highest device down)."""
     options, s = {}, S
     while s:
@@ -77,7 +78,9 @@ def subset_options(K, w, prize, S: int, c: int) -> dict[int, int]:
     return options
 
 
-def route_options(travel, service, prize, budget, visits):
+def route_options(
+    travel: np.ndarray, service: np.ndarray, prize: np.ndarray, budget: float, visits: list[tuple[int, int]]
+) -> list[tuple[int, int]]:
     """The route of ``visits`` [(device, option), ...] with the best options for its slack (the
     knapsack over its devices in order); ``visits`` unchanged when they are already as good."""
     if not visits:

@@ -12,7 +12,7 @@ import numpy as np
 
 
 @functools.cache
-def _layers(n: int):
+def _layers(n: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Per subset size r >= 2: arrays (S, j, S without j) of all subsets S of size r and j in S."""
     subsets = np.arange(1 << n)
     size = np.array([bin(s).count("1") for s in subsets])
@@ -25,7 +25,7 @@ def _layers(n: int):
     return out
 
 
-def held_karp(travel):
+def held_karp(travel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """T (2^N,): shortest time q0 -> all of S -> q_fin for travel (N+2, N+2) over [q0, devices,
     q_fin]; dp, parent (2^N, N) for the path through S ending at device j."""
     n = len(travel) - 2
@@ -43,7 +43,7 @@ def held_karp(travel):
     return T, dp, parent
 
 
-def path(travel, dp, parent, S: int) -> list[int]:
+def path(travel: np.ndarray, dp: np.ndarray, parent: np.ndarray, S: int) -> list[int]:
     """The devices of subset ``S`` in the order of its shortest path (from :func:`held_karp`)."""
     order, s = [], S
     if s:

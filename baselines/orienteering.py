@@ -21,6 +21,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 from ortools.constraint_solver import pywrapcp, routing_enums_pb2
 
 from baselines.dwell_knapsack import (
@@ -44,7 +45,14 @@ BUDGET_TOL_S = 1e-9  # float rounding allowed in the final budget check
 # ----------------------------------------------------------------------------- input checks
 
 
-def _check(travel_s, service_s, prize, budget_s, time_limit_ms, batched: bool):
+def _check(
+    travel_s: npt.ArrayLike,
+    service_s: npt.ArrayLike,
+    prize: npt.ArrayLike,
+    budget_s: npt.ArrayLike,
+    time_limit_ms: int,
+    batched: bool,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     travel_s, service_s, prize = (np.asarray(a, np.float64) for a in (travel_s, service_s, prize))
     lead = travel_s.shape[:1] if batched else ()
     if batched and travel_s.ndim != 3:
@@ -78,11 +86,11 @@ def _check(travel_s, service_s, prize, budget_s, time_limit_ms, batched: bool):
     return travel_s, service_s, prize, budget, int(time_limit_ms)
 
 
-def _empty(n):
+def _empty(n: int) -> tuple[np.ndarray, np.ndarray, float]:
     return np.full(n, -1, np.int32), np.full(n, -1, np.int32), 0.0
 
 
-def plan_time(travel_s, service_s, order, option) -> float:
+def plan_time(travel_s: np.ndarray, service_s: np.ndarray, order: np.ndarray, option: np.ndarray) -> float:
     """Total time (s) of a plan: travel q0 -> visited devices -> q_fin plus their services."""
     travel_s, service_s = np.asarray(travel_s, float), np.asarray(service_s, float)
     order, option = np.asarray(order), np.asarray(option)
@@ -91,7 +99,9 @@ def plan_time(travel_s, service_s, order, option) -> float:
     return float(travel_s[nodes[:-1], nodes[1:]].sum() + service_s[visited, option[visited]].sum())
 
 
-def _finish(travel_s, service_s, prize, budget, visits):
+def _finish(
+    travel_s: np.ndarray, service_s: np.ndarray, prize: np.ndarray, budget: float, visits: list[tuple[int, int]]
+) -> tuple[np.ndarray, np.ndarray, float]:
     """(order, option, value) of visits [(device, option), ...] in order, re-checked against the budget."""
     n = len(service_s)
     order, option = _empty(n)[:2]
@@ -107,7 +117,7 @@ def _finish(travel_s, service_s, prize, budget, visits):
 # ----------------------------------------------------------------------------- exact DP
 
 
-def _solve_dp(travel, service, prize, budget):
+def _solve_dp(travel: np.ndarray, service: np.ndarray, prize: np.ndarray, budget: float) -> list[tuple[int, int]]:
     """Visits [(device, option), ...] of the best plan: the subset whose shortest path leaves the
     slack with the best options (ties: the least time, then the lowest subset)."""
     n = len(service)
@@ -134,7 +144,9 @@ def _solve_dp(travel, service, prize, budget):
 # ----------------------------------------------------------------------------- OR-Tools
 
 
-def _solve_routing(travel, service, prize, budget, time_limit_ms):
+def _solve_routing(
+    travel: np.ndarray, service: np.ndarray, prize: np.ndarray, budget: float, time_limit_ms: int
+) -> list[tuple[int, int]]:
     n, n_opt = service.shape
     dev = np.concatenate([[-1], np.repeat(np.arange(n), n_opt), [n]])  # device of each routing node
     opt = np.concatenate([[0], np.tile(np.arange(n_opt), n), [0]])
@@ -174,7 +186,7 @@ def _solve_routing(travel, service, prize, budget, time_limit_ms):
 # ----------------------------------------------------------------------------- API
 
 
-def _use_dp(n: int, travel, service, budget) -> bool:
+def _use_dp(n: int, travel: np.ndarray, service: np.ndarray, budget: float) -> bool:
     if n > DP_MAX_DEVICES:
         return False
     step = grid_step(service)
@@ -182,7 +194,9 @@ def _use_dp(n: int, travel, service, budget) -> bool:
     return (1 << n) * bins <= DP_MAX_CELLS
 
 
-def _solve_one(travel, service, prize, budget, time_limit_ms):
+def _solve_one(
+    travel: np.ndarray, service: np.ndarray, prize: np.ndarray, budget: float, time_limit_ms: int
+) -> tuple[np.ndarray, np.ndarray, float]:
     n = len(service)
     if travel[0, -1] > budget or n == 0:
         return _empty(n)
@@ -194,7 +208,11 @@ def _solve_one(travel, service, prize, budget, time_limit_ms):
 
 
 def solve(
-    travel_s, service_s, prize, budget_s, time_limit_ms=DEFAULT_TIME_LIMIT_MS
+    travel_s: npt.ArrayLike,
+    service_s: npt.ArrayLike,
+    prize: npt.ArrayLike,
+    budget_s: npt.ArrayLike,
+    time_limit_ms: int = DEFAULT_TIME_LIMIT_MS,
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """Best plan (order, option, value) for nodes [q0, dev_1..dev_N, q_fin].
 
@@ -207,7 +225,9 @@ def solve(
     return _solve_one(*args[:3], float(args[3]), args[4])
 
 
-def _solve_many(travel_s, service_s, prize, budget_s, time_limit_ms) -> dict:
+def _solve_many(
+    travel_s: np.ndarray, service_s: np.ndarray, prize: np.ndarray, budget_s: np.ndarray, time_limit_ms: int
+) -> dict:
     plans = [
         _solve_one(t, s, p, float(b), int(time_limit_ms)) for t, s, p, b in zip(travel_s, service_s, prize, budget_s)
     ]
@@ -220,7 +240,12 @@ def _solve_many(travel_s, service_s, prize, budget_s, time_limit_ms) -> dict:
 
 
 def solve_batch(
-    travel_s, service_s, prize, budget_s, time_limit_ms=DEFAULT_TIME_LIMIT_MS, workers: int = 2
+    travel_s: npt.ArrayLike,
+    service_s: npt.ArrayLike,
+    prize: npt.ArrayLike,
+    budget_s: npt.ArrayLike,
+    time_limit_ms: int = DEFAULT_TIME_LIMIT_MS,
+    workers: int = 2,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``solve`` over a leading axis E (budget_s (E,) or scalar): order, option (E, N), value (E,).
 

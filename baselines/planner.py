@@ -17,6 +17,9 @@ real rates (shared band, edge of range) are the env's.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -36,6 +39,9 @@ from semuav_jax.control import (
     time_to_pass,
 )
 from semuav_jax.params import EnvParams
+
+if TYPE_CHECKING:
+    from semuav_jax.env import EnvState
 
 PLAN_SPEEDS = (16.0, 20.0, 25.0)  # m/s, cruise speeds the planner chooses from
 PASS_SPEEDS = (4.0, 6.0, 8.0, 11.0, 15.0, 20.0)  # m/s, speeds through a device's range
@@ -66,7 +72,7 @@ def hover_rate(params: EnvParams) -> float:
     return float(channel.rest_rate(params)) / float(params.beta)
 
 
-def _range_symbols(params: EnvParams, n: int = 400):
+def _range_symbols(params: EnvParams, n: int = 400) -> tuple[np.ndarray, np.ndarray]:
     """Ground radii r (midpoints over the range radius) and the symbol rate R(r) / beta of a lone device."""
     rc = float(range_radius(params))
     r = (np.arange(n) + 0.5) * rc / n
@@ -77,7 +83,7 @@ def _range_symbols(params: EnvParams, n: int = 400):
     )
 
 
-def visit_options(v, params: EnvParams):
+def visit_options(v: float, params: EnvParams) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Eq. 7.8: the visit options of a device at cruise speed v, as arrays over options:
     w (speed through the range; 0 = hover), symbols expected, service seconds (time beyond
     cruising past the device at v), symbol target (M for passes).
@@ -109,7 +115,9 @@ def visit_options(v, params: EnvParams):
     )
 
 
-def travel_times(start, dev_pos, params: EnvParams, v: float, v_now=None):
+def travel_times(
+    start: np.ndarray, dev_pos: np.ndarray, params: EnvParams, v: float, v_now: np.ndarray | None = None
+) -> np.ndarray:
     """Eq. 7.7: the legs' seconds (E, N+2, N+2) over the nodes [start (E, 2), devices (E, N, 2), q_fin]
     of E episodes: cruising at v plus one slot of command delay per leg; the first leg adds the time
     to reach cruise, v / (2 a_max) from rest or ||v u - v_now|| / (2 a_max) from the velocity
@@ -130,7 +138,9 @@ def travel_times(start, dev_pos, params: EnvParams, v: float, v_now=None):
     return np.maximum(travel, 0.0)
 
 
-def problems(dev_pos, dev_img, params: EnvParams, v):
+def problems(
+    dev_pos: np.ndarray, dev_img: np.ndarray, params: EnvParams, v: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The orienteering inputs (travel_s, service_s, prize) of E layouts at cruise speed v, from
     q0 at rest (:func:`travel_times`), and the options' (w, target)."""
     C = np.asarray(params.C, np.float64)
@@ -146,7 +156,9 @@ def problems(dev_pos, dev_img, params: EnvParams, v):
     )
 
 
-def make_plans(keys, params: EnvParams, speeds=PLAN_SPEEDS, workers: int = 2) -> PlanState:
+def make_plans(
+    keys: jax.Array, params: EnvParams, speeds: Sequence[float] = PLAN_SPEEDS, workers: int = 2
+) -> PlanState:
     """Plans (a PlanState with an episode axis) for the episodes run with ``keys`` (same layouts
     as ``rollout``): for each layout the best plan over ``speeds`` by planned prize."""
     speeds = tuple(float(v) for v in speeds)
@@ -180,12 +192,12 @@ def make_plans(keys, params: EnvParams, speeds=PLAN_SPEEDS, workers: int = 2) ->
     )
 
 
-def planner(ps: PlanState, s, params: EnvParams):
+def planner(ps: PlanState, s: EnvState, params: EnvParams) -> tuple[jax.Array, PlanState]:
     """Fly the plan (see the module docstring); the interface of the baselines' policies."""
     left = (params.K - s.t) * params.tau
     N = ps.order.shape[0]
 
-    def done_with(i):
+    def done_with(i: jax.Array) -> jax.Array:
         n = ps.order[jnp.minimum(i, N - 1)]
         valid = (i < N) & (n >= 0)
         n = jnp.maximum(n, 0)

@@ -12,6 +12,9 @@ an episode that is resting over a device it has not finished keeps its plan unti
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
+
 import jax
 import numpy as np
 
@@ -21,6 +24,9 @@ from semuav_jax.control import STOP_BRAKE, range_radius
 from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import rollout_replanned
 
+if TYPE_CHECKING:
+    from semuav_jax.env import EnvState
+
 PASS_SPEEDS = (3.0, 6.0, 10.0, 15.0)  # m/s at the device (eq. 7.11)
 PLAN_SPEEDS = (25.0,)  # m/s, cruise speeds of the first plan; later plans keep the one chosen
 HOVER_SYMBOLS = (16, 32, 48, 64, 96, 128, 192, 256)  # stop targets (symbols, capped at M)
@@ -29,7 +35,7 @@ TURN_SHARE = 0.5  # share of w / a_max booked for turning at a device (the angle
 SLACK_SHARE = 0.1  # a plan may book the time left x (1 + this): the legs over-estimate the flight
 
 
-def options(v: float, m, params: EnvParams):
+def options(v: float, m: np.ndarray, params: EnvParams) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Eq. 7.11 at cruise speed v for devices holding m (E, N) symbols: w (L,) (0 = a stop), the
     symbols after the visit (E, N, L), the service seconds (E, N, L, on the 0.25 s grid) and the
     symbol target (E, N, L) that ends the visit in flight (M for a pass).
@@ -70,7 +76,16 @@ def options(v: float, m, params: EnvParams):
     return np.concatenate([w, np.zeros(len(k))]), after, service, target
 
 
-def problems(q, v_now, m, t, dev_pos, dev_img, params: EnvParams, v: float):
+def problems(
+    q: np.ndarray,
+    v_now: np.ndarray,
+    m: np.ndarray,
+    t: np.ndarray,
+    dev_pos: np.ndarray,
+    dev_img: np.ndarray,
+    params: EnvParams,
+    v: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Orienteering inputs of E episodes from their current states at cruise speed v: travel
     (E, N+2, N+2) over [q, devices, q_fin] (eq. 7.7: cruise plus one slot of command delay, the
     first leg plus ||v u - v_now|| / (2 a_max) to reach cruise, the last the braking into the
@@ -86,7 +101,9 @@ def problems(q, v_now, m, t, dev_pos, dev_img, params: EnvParams, v: float):
     return travel, service, prize, left * (1.0 + SLACK_SHARE), w, target
 
 
-def _solve(states, params: EnvParams, v: float, workers: int):
+def _solve(
+    states: EnvState, params: EnvParams, v: float, workers: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(order, w, target per device, planned prize) of the episodes ``states`` at cruise speed v."""
     f = lambda x: np.asarray(x, np.float64)
     travel, service, prize, budget, w, target = problems(
@@ -104,7 +121,7 @@ def _solve(states, params: EnvParams, v: float, workers: int):
     return order, w[o], np.take_along_axis(target, o[..., None], -1)[..., 0], value
 
 
-def _resting(states, ps: PlanState, params: EnvParams):
+def _resting(states: EnvState, ps: PlanState, params: EnvParams) -> np.ndarray:
     """(E,) bool: the episode rests in range of its current hover device, short of its target."""
     N = ps.order.shape[1]
     idx = np.minimum(np.asarray(ps.idx), N - 1)
@@ -115,7 +132,9 @@ def _resting(states, ps: PlanState, params: EnvParams):
     return (np.asarray(ps.idx) < N) & (pick(ps.w) == 0) & near & (pick(states.m) < pick(ps.target) - 1e-3)
 
 
-def make_replanner(params: EnvParams, speeds=PLAN_SPEEDS, workers: int = 2):
+def make_replanner(
+    params: EnvParams, speeds: Sequence[float] = PLAN_SPEEDS, workers: int = 2
+) -> Callable[[EnvState, PlanState | None], PlanState]:
     """``replan(states, plans) -> plans`` for :func:`semuav_jax.rollout.rollout_replanned`: the
     first call plans at every speed of ``speeds`` and keeps the best planned prize per episode;
     later calls re-plan every episode that is neither done nor resting (``_resting``) at its speed."""
@@ -124,7 +143,7 @@ def make_replanner(params: EnvParams, speeds=PLAN_SPEEDS, workers: int = 2):
         raise ValueError(f"planner speeds must be finite and > 0 m/s, got {speeds}")
     s0 = hover_rate(params)
 
-    def replan(states, ps: PlanState | None) -> PlanState:
+    def replan(states: EnvState, ps: PlanState | None) -> PlanState:
         E = states.m.shape[0]
         if ps is None:
             best, v_p = None, np.zeros(E)
@@ -165,8 +184,13 @@ def make_replanner(params: EnvParams, speeds=PLAN_SPEEDS, workers: int = 2):
 
 
 def fly(
-    keys, params: EnvParams, every_s: float = REPLAN_EVERY_S, speeds=PLAN_SPEEDS, workers: int = 2, trace: bool = False
-):
+    keys: jax.Array,
+    params: EnvParams,
+    every_s: float = REPLAN_EVERY_S,
+    speeds: Sequence[float] = PLAN_SPEEDS,
+    workers: int = 2,
+    trace: bool = False,
+) -> tuple[dict[str, np.ndarray], dict[str, jax.Array] | None]:
     """``(metrics, trace)`` of the receding-horizon planner on the episodes ``keys`` (the same
     layouts and delays as ``rollout``): NumPy (E,) metrics of MODEL.md section 8 and, with
     ``trace``, the per-slot trace of ``semuav_jax.rollout``."""

@@ -14,6 +14,8 @@ reported number comes from the test layouts (``keys.TEST_SEED``), the same episo
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Iterable, Sequence
+from typing import TYPE_CHECKING
 
 import jax
 import numpy as np
@@ -29,6 +31,10 @@ from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import validate_params
 from semuav_jax.stats import mean_ci, wilson_interval
 
+if TYPE_CHECKING:
+    from baselines.planner import PlanState
+    from semuav_jax.params import EnvParams
+
 SPEED_GRID = tuple(float(v) for v in range(6, 26))  # m/s, 6..25 in 1 m/s steps
 BANDWIDTHS = (5e3, 20e3, 25e3, 40e3)  # Hz
 ARRIVAL_MIN = 0.995
@@ -40,7 +46,13 @@ DWELL_GRID = {
 }  # m/s, symbols, s
 
 
-def tune(params, bandwidths=BANDWIDTHS, episodes: int = 500, grid=SPEED_GRID, workers: int = 2) -> dict:
+def tune(
+    params: EnvParams,
+    bandwidths: Sequence[float] = BANDWIDTHS,
+    episodes: int = 500,
+    grid: Sequence[float] = SPEED_GRID,
+    workers: int = 2,
+) -> dict:
     """v_b* per bandwidth for each of ``TUNED`` on the validation layouts, and the grid's means."""
     keys = episode_keys(VALIDATION_SEED, episodes)
     rank = tsp_ranks(keys, params, workers=workers)
@@ -60,7 +72,14 @@ def tune(params, bandwidths=BANDWIDTHS, episodes: int = 500, grid=SPEED_GRID, wo
 
 
 def flights(
-    params, keys, tuned: dict, bandwidths=BANDWIDTHS, workers: int = 2, rank=None, plans=None, account: bool = False
+    params: EnvParams,
+    keys: jax.Array,
+    tuned: dict,
+    bandwidths: Sequence[float] = BANDWIDTHS,
+    workers: int = 2,
+    rank: np.ndarray | None = None,
+    plans: Sequence[PlanState] | None = None,
+    account: bool = False,
 ) -> list[dict]:
     """Per-episode metrics (dicts of (E,) arrays) on ``keys`` at each bandwidth: greedy and TSP at
     the paper's speed and at their tuned v_b* (``tuned`` from :func:`tune`), and the planner.
@@ -115,7 +134,7 @@ def summary(m: dict, T_s: float | None = None) -> dict:
 EXACT_VS = ("planner", "greedy-dwell", "tsp-dwell")  # the exact planner's target: the best of these + 0.5 dB
 
 
-def check_bandwidth(params, b: float, velocities=()) -> None:
+def check_bandwidth(params: EnvParams, b: float, velocities: Iterable[float] = ()) -> None:
     """ValueError (one line), before any computation, unless the bandwidth ``b`` and the speeds give
     valid parameters and finite planner service times (a B so small that one image never arrives)."""
     at = params.replace(B=float(b))
@@ -131,7 +150,12 @@ def check_bandwidth(params, b: float, velocities=()) -> None:
 
 
 def report(
-    params, bandwidths=BANDWIDTHS, episodes: int = 1000, validation_episodes: int = 500, workers: int = 2, log=print
+    params: EnvParams,
+    bandwidths: Sequence[float] = BANDWIDTHS,
+    episodes: int = 1000,
+    validation_episodes: int = 500,
+    workers: int = 2,
+    log: Callable[[str], None] = print,
 ) -> dict:
     """Every number of the table (JSON-ready)."""
     t0 = time.perf_counter()

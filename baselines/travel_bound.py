@@ -17,6 +17,7 @@ water-filling: the b(S) largest unit gains), maximised over all 2^N subsets S.
 from __future__ import annotations
 
 import functools
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,10 +26,13 @@ from baselines.evaluate import layouts
 from semuav_jax.control import range_radius
 from semuav_jax.params import EnvParams, validate_params
 
+if TYPE_CHECKING:
+    import jax
+
 SAFETY_DB = 1e-4  # float32 rounding of the env's mean PSNR
 
 
-def envelope_gains(curves) -> np.ndarray:
+def envelope_gains(curves: np.ndarray) -> np.ndarray:
     """(I, M) unit gains of each curve's upper concave envelope after a running max (a policy may
     stop a device early): non-increasing along k, summing to max_k C[i, k] - C[i, 0]."""
     c = np.maximum.accumulate(np.asarray(curves, np.float64), axis=-1)
@@ -51,7 +55,7 @@ def _subsets(n: int) -> np.ndarray:
     return (np.arange(1 << n)[:, None] >> np.arange(n)) & 1  # (2^n, n) membership
 
 
-def dead_slots(dev_pos, params: EnvParams) -> np.ndarray:
+def dead_slots(dev_pos: np.ndarray, params: EnvParams) -> np.ndarray:
     """(E, 2^N) eq. 7.12 for layouts (E, N, 2): slots a flight touching exactly the discs of subset S
     (bit n = device n) must end outside every disc: minimum spanning tree of {q0} and S (Prim over
     subsets) plus the final stretch, each stretch of length g worth (g / (v_max tau) - 1)+ slots."""
@@ -78,7 +82,7 @@ def dead_slots(dev_pos, params: EnvParams) -> np.ndarray:
     return tree + last
 
 
-def layout_bound(dead, gains, base, params: EnvParams) -> float:
+def layout_bound(dead: np.ndarray, gains: np.ndarray, base: np.ndarray, params: EnvParams) -> float:
     """Eq. 7.14 for one layout: dead (2^N,) slots of eq. 7.12, gains (N, M) of its devices'
     envelopes, base (N,) = C[i_n, 0]. Per subset, the b(S) largest unit gains of its devices: a
     bisection for the b(S)-th largest value lambda, then the prefix sums up to it."""
@@ -90,7 +94,7 @@ def layout_bound(dead, gains, base, params: EnvParams) -> float:
     asc = np.ascontiguousarray(gains[:, ::-1])  # each device's gains, ascending
     vals = np.unique(gains)
 
-    def above(lam):  # (S, N): units of each device with gain > lam (lam per subset)
+    def above(lam: np.ndarray) -> np.ndarray:  # (S, N): units of each device with gain > lam (lam per subset)
         return member * (M - np.stack([np.searchsorted(asc[j], lam, side="right") for j in range(n)], axis=1))
 
     lo, hi = np.zeros(len(budget), np.int64), np.full(len(budget), len(vals) - 1)
@@ -106,7 +110,7 @@ def layout_bound(dead, gains, base, params: EnvParams) -> float:
     return float((base.sum() + value.max()) / n)
 
 
-def travel_bound(keys, params: EnvParams) -> np.ndarray:
+def travel_bound(keys: jax.Array, params: EnvParams) -> np.ndarray:
     """(E,) eq. 7.14: per-episode upper bound (dB) on the final mean PSNR of any policy that arrives,
     on the episodes run with ``keys`` (their layouts and images)."""
     keys = _check_keys(keys)
@@ -118,7 +122,7 @@ def travel_bound(keys, params: EnvParams) -> np.ndarray:
     return np.array([layout_bound(dead[e], gains[img[e]], C[img[e], 0], params) for e in range(len(pos))]) + SAFETY_DB
 
 
-def flight_account(trace: dict, keys, params: EnvParams) -> dict:
+def flight_account(trace: dict, keys: jax.Array, params: EnvParams) -> dict:
     """Where a flight stands against the relaxation (docs/baselines.md, "Where the gap lies"): per
     episode (E,) its seconds with data (some device transmitting), without data before the end and
     unused after it; the dead seconds eq. 7.12 allows for the same set of touched discs; and the

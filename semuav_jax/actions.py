@@ -4,18 +4,25 @@ accelerations."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 
 from semuav_jax.control import approach_speed, home_command, speed_command
 from semuav_jax.params import EnvParams
 
+if TYPE_CHECKING:
+    from semuav_jax.env import EnvState
 
-def axis_levels(params: EnvParams):
+
+def axis_levels(params: EnvParams) -> jax.Array:
     """The ``levels`` accelerations per axis, evenly spaced in [-a_max, a_max] (eq. 6.1)."""
     return jnp.linspace(-1.0, 1.0, params.levels) * params.a_max
 
 
-def action_table(params: EnvParams):
+def action_table(params: EnvParams) -> jax.Array:
     """Eq. 6.1: (levels^2, 2) accelerations, ``levels`` values per axis evenly spaced in [-a_max, a_max].
 
     Action i commands (a^x, a^y) = (lv[i // levels], lv[i % levels]).
@@ -25,7 +32,7 @@ def action_table(params: EnvParams):
     return jnp.stack([ax.reshape(-1), ay.reshape(-1)], axis=-1)
 
 
-def action_to_accel(action, params: EnvParams):
+def action_to_accel(action: ArrayLike, params: EnvParams) -> jax.Array:
     """The acceleration of a discrete action index (eq. 6.1)."""
     return action_table(params)[action]
 
@@ -41,14 +48,14 @@ HOME = TARGETS * len(SPEEDS)  # the last waypoint action: fly home at v_max and 
 NUM_WAYPOINT_ACTIONS = HOME + 1
 
 
-def device_order(state, params: EnvParams):
+def device_order(state: EnvState, params: EnvParams) -> jax.Array:
     """(N,) device indices, unfinished ones (m_n < M) first, each group nearest first: the order in
     which waypoint actions address devices (eq. 6.2)."""
     d2 = jnp.sum((state.dev_pos - state.q) ** 2, axis=-1)
     return jnp.argsort(jnp.where(state.m < params.M, d2, d2 + 1e12))
 
 
-def waypoint_accel(action, state, params: EnvParams):
+def waypoint_accel(action: ArrayLike, state: EnvState, params: EnvParams) -> jax.Array:
     """Eq. 6.2: the acceleration of waypoint action ``action`` (0 .. HOME), by the controller of eq. 7.1.
 
     Action j * len(SPEEDS) + i flies towards the j-th device of :func:`device_order` at SPEEDS[i],
@@ -74,7 +81,7 @@ def num_actions(mode: str, params: EnvParams) -> int:
     return NUM_WAYPOINT_ACTIONS if mode == "waypoint" else params.levels * params.levels
 
 
-def to_accel(mode: str, action, state, params: EnvParams):
+def to_accel(mode: str, action: ArrayLike, state: EnvState, params: EnvParams) -> jax.Array:
     """The acceleration of discrete ``action`` in the action mode ``mode`` (static): eq. 6.1 or eq. 6.2."""
     if mode == "waypoint":
         return waypoint_accel(action, state, params)

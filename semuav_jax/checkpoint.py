@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import jax
 import numpy as np
@@ -13,12 +14,12 @@ from flax import serialization
 from semuav_jax.io import atomic_write
 
 
-def save(path: str | os.PathLike, state) -> Path:
+def save(path: str | os.PathLike, state: Any) -> Path:
     """Write the pytree ``state`` (msgpack) atomically: a kill leaves the previous checkpoint or this one."""
     return atomic_write(path, serialization.to_bytes(state))
 
 
-def restore(path: str | os.PathLike, template, free: tuple[str, ...] = ()):
+def restore(path: str | os.PathLike, template: Any, free: tuple[str, ...] = ()) -> tuple[Any, dict[str, Any]]:
     """``(state, extras)``: the checkpoint at ``path`` in the structure of ``template`` and the
     entries named in ``free`` (top-level keys of a dict checkpoint, restored as saved, None if
     absent); ValueError (one line) if it is unreadable or its arrays are not the template's."""

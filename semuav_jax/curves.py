@@ -14,6 +14,7 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 
 from semuav_jax.io import atomic_write
 
@@ -36,11 +37,11 @@ class PSNRCurves:
     def num_images(self) -> int:
         return self.C.shape[0]
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         validate_curves(self.C, self.meta)
 
 
-def validate_curves(C, meta: dict | None = None, where: str = "curves") -> None:
+def validate_curves(C: npt.ArrayLike, meta: dict | None = None, where: str = "curves") -> None:
     """Raise ValueError unless C is a finite 2-D array (images x (M+1)) consistent with ``meta``."""
     C = np.asarray(C)
     if C.ndim != 2 or C.shape[0] < 1 or C.shape[1] < 2:
@@ -89,7 +90,7 @@ def load_curves(path: str | os.PathLike | None = None) -> PSNRCurves:
     return PSNRCurves(C=C.astype(np.float32), meta=meta)
 
 
-def save_curves(path: str | os.PathLike, C, meta: dict) -> Path:
+def save_curves(path: str | os.PathLike, C: npt.ArrayLike, meta: dict) -> Path:
     """Write a curves file atomically after validating it."""
     C = np.asarray(C, dtype=np.float32)
     meta = {**meta, "M": int(C.shape[1] - 1)}

@@ -19,6 +19,7 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 
 from semuav_jax.actions import to_accel
 from semuav_jax.env import EnvState, transition_u
@@ -62,12 +63,14 @@ class SlotOut(NamedTuple):
     reward: jax.Array
 
 
-def observe(policy: Policy, state: EnvState, params: EnvParams):
+def observe(policy: Policy, state: EnvState, params: EnvParams) -> jax.Array | None:
     """What ``policy`` sees of ``state``; None for a full-state policy (the state is not carried twice)."""
     return None if policy.observe is full_state else policy.observe(state, params)
 
 
-def command(policy: Policy, policy_state, obs, state: EnvState, params: EnvParams):
+def command(
+    policy: Policy, policy_state: Any, obs: jax.Array | None, state: EnvState, params: EnvParams
+) -> tuple[jax.Array, jax.Array, jax.Array, Any]:
     """The BS's command in ``state`` (``obs``: :func:`observe` of it): (action sent, shielded?,
     acceleration (2,), policy_state)."""
     chosen, policy_state = policy.act(policy_state, state if obs is None else obs, params)
@@ -80,7 +83,9 @@ def command(policy: Policy, policy_state, obs, state: EnvState, params: EnvParam
     return sent, shielded, accel, policy_state
 
 
-def slot(policy: Policy, u, state: EnvState, obs, policy_state, params: EnvParams):
+def slot(
+    policy: Policy, u: ArrayLike, state: EnvState, obs: jax.Array | None, policy_state: Any, params: EnvParams
+) -> tuple[EnvState, jax.Array | None, Any, SlotOut]:
     """One slot: the command, the transition (``env.transition_u`` with the delay draw ``u``) and the
     policy's observation of the new state. Returns ``(state', obs', policy_state', SlotOut)``."""
     sent, shielded, accel, policy_state = command(policy, policy_state, obs, state, params)

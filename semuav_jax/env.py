@@ -8,11 +8,14 @@ pure and jittable. ``make`` builds the environment and its parameters by id, lik
 
 from __future__ import annotations
 
+from typing import Any
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
 from gymnax.environments import environment, spaces
+from jax.typing import ArrayLike
 
 from semuav_jax import channel, kinematics, quality
 from semuav_jax.actions import ACTION_MODES, num_actions, to_accel
@@ -42,7 +45,7 @@ class EnvState:
     ret: jax.Array  # return accumulated so far
 
 
-def initial_state(dev_pos, dev_img, params: EnvParams) -> EnvState:
+def initial_state(dev_pos: ArrayLike, dev_img: ArrayLike, params: EnvParams) -> EnvState:
     """The state at t = 0 for a given layout: q = q0, v = a = 0, nothing received."""
     N = dev_pos.shape[0]
     return EnvState(
@@ -62,7 +65,7 @@ def initial_state(dev_pos, dev_img, params: EnvParams) -> EnvState:
     )
 
 
-def sample_layout(key, params: EnvParams):
+def sample_layout(key: jax.Array, params: EnvParams) -> tuple[jax.Array, jax.Array]:
     """Device positions uniform in the area and image indices uniform over C's rows (with replacement)."""
     kp, ki = jax.random.split(key)
     area = jnp.stack([params.Lx, params.Ly])
@@ -71,19 +74,19 @@ def sample_layout(key, params: EnvParams):
     return pos, img
 
 
-def reset_state(key, params: EnvParams) -> EnvState:
+def reset_state(key: jax.Array, params: EnvParams) -> EnvState:
     """Initial state: a fresh random layout, or the fixed one of ``params`` (MODEL.md section 1)."""
     if params.layout == "fixed":
         return initial_state(params.device_pos, params.device_img, params)
     return initial_state(*sample_layout(key, params), params)
 
 
-def bandwidth_shares(x, B):
+def bandwidth_shares(x: jax.Array, B: ArrayLike) -> jax.Array:
     """Eq. 3.6: OFDMA splits B equally among the k transmitting devices, B_n = B / max(k, 1) (0 if silent)."""
     return jnp.where(x, B / jnp.maximum(jnp.sum(x), 1).astype(jnp.float32), 0.0)
 
 
-def transition(key, state: EnvState, accel, params: EnvParams):
+def transition(key: jax.Array, state: EnvState, accel: ArrayLike, params: EnvParams) -> tuple[EnvState, jax.Array]:
     """One slot (MODEL.md section 3) under a continuous acceleration command.
 
     Returns ``(state', reward)``. Once ``state.done`` the state is frozen and the reward is 0, so
@@ -92,7 +95,7 @@ def transition(key, state: EnvState, accel, params: EnvParams):
     return transition_u(jax.random.uniform(key), state, accel, params)
 
 
-def transition_u(u, state: EnvState, accel, params: EnvParams):
+def transition_u(u: ArrayLike, state: EnvState, accel: ArrayLike, params: EnvParams) -> tuple[EnvState, jax.Array]:
     """``transition`` given the slot's uniform draw u ~ U(0, 1) of the processing delay.
 
     ``rollout`` draws all K of an episode at once, outside the slot loop (faster on CPU).
@@ -144,7 +147,7 @@ class SemUAVEnv(environment.Environment[EnvState, EnvParams]):
     overriding ``get_obs`` and ``observation_space``.
     """
 
-    def __init__(self, params: EnvParams | None = None, actions: str = "table"):
+    def __init__(self, params: EnvParams | None = None, actions: str = "table") -> None:
         if actions not in ACTION_MODES:
             raise ValueError(f"actions must be one of {ACTION_MODES}, got {actions!r}")
         self._params = params
@@ -158,15 +161,17 @@ class SemUAVEnv(environment.Environment[EnvState, EnvParams]):
             self._checked = params
         return params
 
-    def reset(self, key, params: EnvParams | None = None):
+    def reset(self, key: jax.Array, params: EnvParams | None = None) -> tuple[jax.Array, EnvState]:
         return super().reset(key, self._check(params))
 
-    def step(self, key, state: EnvState, action, params: EnvParams | None = None):
+    def step(
+        self, key: jax.Array, state: EnvState, action: ArrayLike, params: EnvParams | None = None
+    ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, dict[str, Any]]:
         params = self._check(params)
         self._check_action(state, action, params)
         return super().step(key, state, action, params)
 
-    def _check_action(self, state: EnvState, action, params: EnvParams) -> None:
+    def _check_action(self, state: EnvState, action: ArrayLike, params: EnvParams) -> None:
         """ValueError (one line) for a state of another N, an action that is not an integer, or a
         concrete action out of range (a traced one out of range makes ``info["valid"]`` False)."""
         if np.shape(state.m)[-1:] != (params.N,):
@@ -202,20 +207,22 @@ class SemUAVEnv(environment.Environment[EnvState, EnvParams]):
         low, high = obs_bounds(params)
         return spaces.Box(low, high, (obs_size(params),), jnp.float32)
 
-    def get_obs(self, state: EnvState, params: EnvParams | None = None, key=None):
+    def get_obs(self, state: EnvState, params: EnvParams | None = None, key: jax.Array | None = None) -> jax.Array:
         return observation(state, params or self.default_params)
 
-    def is_terminated(self, state: EnvState, params: EnvParams | None = None):
+    def is_terminated(self, state: EnvState, params: EnvParams | None = None) -> jax.Array:
         return state.done
 
-    def is_truncated(self, state: EnvState, params: EnvParams | None = None):
+    def is_truncated(self, state: EnvState, params: EnvParams | None = None) -> jax.Array:
         return jnp.zeros((), bool)
 
-    def reset_env(self, key, params: EnvParams):
+    def reset_env(self, key: jax.Array, params: EnvParams) -> tuple[jax.Array, EnvState]:
         state = reset_state(key, params)
         return self.get_obs(state, params), state
 
-    def step_env(self, key, state: EnvState, action, params: EnvParams):
+    def step_env(
+        self, key: jax.Array, state: EnvState, action: ArrayLike, params: EnvParams
+    ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, dict[str, Any]]:
         new, rew = transition(key, state, to_accel(self.actions, action, state, params), params)
         in_range = (action >= 0) & (action < num_actions(self.actions, params))
         info = {
@@ -227,7 +234,7 @@ class SemUAVEnv(environment.Environment[EnvState, EnvParams]):
         return self.get_obs(new, params), new, rew, new.done, info
 
 
-def make(env_id: str, actions: str = "table", **params) -> tuple[SemUAVEnv, EnvParams]:
+def make(env_id: str, actions: str = "table", **params: Any) -> tuple[SemUAVEnv, EnvParams]:
     """``(env, env_params)`` for an environment id, as ``gymnax.make``; ``actions`` is the action
     mode ("table", eq. 6.1, or "waypoint", eq. 6.2), ``params`` are ``make_params`` overrides."""
     if env_id != ENV_ID:

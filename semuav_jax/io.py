@@ -7,7 +7,12 @@ from __future__ import annotations
 import io
 import os
 import tempfile
+from collections.abc import Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
@@ -28,7 +33,7 @@ def atomic_write(path: str | os.PathLike, data: bytes) -> Path:
     return path
 
 
-def save_figure(fig, path: str | os.PathLike, dpi: int = 120, layout: bool = True, crop: bool = True) -> Path:
+def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = 120, layout: bool = True, crop: bool = True) -> Path:
     """Write the matplotlib figure ``fig`` atomically in the format of ``path``'s suffix (.png,
     .pdf, .svg) and close it. ``layout``: ``tight_layout`` first; ``crop``: the bounding box of
     what is drawn, so legends placed outside the axes are kept."""
@@ -62,7 +67,7 @@ def check_writable_folder(path: str | os.PathLike, what: str = "--out") -> Path:
     return path
 
 
-def remove_stale_temps(folder: Path, names) -> None:
+def remove_stale_temps(folder: Path, names: Iterable[str]) -> None:
     """Remove the temporary files of :func:`atomic_write` (``<name>.<8 random characters>.tmp``)
     that a save killed before its rename left in ``folder``, for each file name in ``names``."""
     for n in names:

@@ -2,20 +2,22 @@
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 
 from semuav_jax import channel
 from semuav_jax.params import EnvParams
 
 
-def command_delay(u, q_prev, params: EnvParams):
+def command_delay(u: ArrayLike, q_prev: ArrayLike, params: EnvParams) -> jax.Array:
     """Eq. 3.1: delay = min(tau, proc + L_cmd / R_b(q[t-1])), proc = u proc_max with u ~ U(0, 1)."""
     d = q_prev - params.bs_pos
     r_b = channel.rate(d[0] * d[0] + d[1] * d[1], params.H - params.bs_h, params.P_b, params.B_b, params)
     return jnp.minimum(params.tau, u * params.proc_max + params.L_cmd / r_b)
 
 
-def speed_cap(v, w, params: EnvParams):
+def speed_cap(v: ArrayLike, w: ArrayLike, params: EnvParams) -> jax.Array:
     """Eq. 3.3: the velocity after the step w = a_eff tau under the speed cap v_max.
 
     v + w when ``|v + w| <= v_max``; else its radial scaling to v_max (MODEL.md) when that stays
@@ -32,7 +34,7 @@ def speed_cap(v, w, params: EnvParams):
     X = v[0] + jnp.array([-h, h])
     Y = v[1] + jnp.array([-h, h])
 
-    def edge(fixed, free_v, free_c):
+    def edge(fixed: ArrayLike, free_v: ArrayLike, free_c: ArrayLike) -> tuple[jax.Array, jax.Array]:
         s = jnp.sqrt(jnp.maximum(R * R - fixed * fixed, 0.0))
         lo, hi = jnp.maximum(free_v - h, -s), jnp.minimum(free_v + h, s)
         ok = (fixed * fixed <= R * R) & (lo <= hi)
@@ -47,7 +49,9 @@ def speed_cap(v, w, params: EnvParams):
     return jnp.where(jnp.sum(c * c) <= R * R, c, jnp.where(in_box, radial, best))
 
 
-def move(q, v, a_prev, a_new, delay, params: EnvParams):
+def move(
+    q: ArrayLike, v: ArrayLike, a_prev: ArrayLike, a_new: ArrayLike, delay: ArrayLike, params: EnvParams
+) -> tuple[jax.Array, jax.Array]:
     """Eqs. 3.2-3.4: delayed acceleration, speed cap (:func:`speed_cap`) and integration.
 
     No wall: only the bounded acceleration changes the velocity, and the UAV may leave the area.
@@ -58,7 +62,7 @@ def move(q, v, a_prev, a_new, delay, params: EnvParams):
     return q + v * params.tau, v
 
 
-def outside_airspace(q, params: EnvParams):
+def outside_airspace(q: ArrayLike, params: EnvParams) -> jax.Array:
     """Eq. 3.10: q lies more than ``airspace_margin`` outside the area (never with the default inf)."""
     m = params.airspace_margin
     hi = jnp.stack([params.Lx, params.Ly])

@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+import jax
 import jax.numpy as jnp
 
 from semuav_jax.params import EnvParams, params_valid
 
+if TYPE_CHECKING:
+    from semuav_jax.env import EnvState
 
-def episode_metrics(state, params: EnvParams) -> dict:
+
+def episode_metrics(state: EnvState, params: EnvParams) -> dict[str, jax.Array]:
     """Metrics of one finished episode from its final ``EnvState``.
 
     psnr_visited is the mean PSNR over covered devices (m_n > 0); 0 when none is covered, so it

@@ -2,9 +2,15 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+import jax
 import jax.numpy as jnp
 
 from semuav_jax.params import EnvParams
+
+if TYPE_CHECKING:
+    from semuav_jax.env import EnvState
 
 GLOBAL_FEATURES = 9  # q (2), v (2), a (2), time left (1), q_fin - q (2)
 DEVICE_FEATURES = 5  # p_n - q (2), m_n / M, x_n, phi_n normalized
@@ -14,7 +20,7 @@ def obs_size(params: EnvParams) -> int:
     return GLOBAL_FEATURES + DEVICE_FEATURES * params.N
 
 
-def obs_bounds(params: EnvParams):
+def obs_bounds(params: EnvParams) -> tuple[jax.Array, jax.Array]:
     """(low, high) of every entry of eq. 5.1. Offsets scale with the farthest the UAV can fly from
     q0 in T (no wall: it may leave the area); in ordinary flight they stay in about [-1, 1]."""
     reach = 1.0 + params.v_max * params.K * params.tau / jnp.minimum(params.Lx, params.Ly)
@@ -28,7 +34,7 @@ def obs_bounds(params: EnvParams):
     return low, high
 
 
-def observation(state, params: EnvParams):
+def observation(state: EnvState, params: EnvParams) -> jax.Array:
     """Eq. 5.1: a flat float32 vector, each entry in about [-1, 1].
 
     phi_n is normalized to [0, 1] by the range of the curves C.

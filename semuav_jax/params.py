@@ -7,10 +7,13 @@ first dimension of ``device_pos`` and the number of images is the first dimensio
 
 from __future__ import annotations
 
+from typing import Any
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
+from jax.typing import ArrayLike
 
 from semuav_jax.curves import PSNRCurves, load_curves, validate_curves
 
@@ -73,9 +76,9 @@ class EnvParams:
 def make_params(
     curves: PSNRCurves | np.ndarray | None = None,
     N: int | None = None,
-    device_pos=None,
-    device_img=None,
-    **overrides,
+    device_pos: ArrayLike | None = None,
+    device_img: ArrayLike | None = None,
+    **overrides: Any,
 ) -> EnvParams:
     """Build and validate :class:`EnvParams`.
 
@@ -158,7 +161,7 @@ SQUARE_MAX = 1.8e19
 _MAY_BE_INF = ("device_img", "airspace_margin")
 
 
-def params_valid(params: EnvParams):
+def params_valid(params: EnvParams) -> jax.Array:
     """Traced bool: the checks of :func:`validate_params` that traced values can fail (finite,
     positive, D_com > H, image indices in range). ``episode_metrics`` reports it as ``valid``,
     since a value inside ``jit``/``vmap`` cannot raise."""
@@ -178,12 +181,12 @@ def params_valid(params: EnvParams):
     return ok & jnp.all((img >= 0) & (img < params.C.shape[0]))
 
 
-def _float32(v):
+def _float32(v: ArrayLike) -> np.ndarray:
     with np.errstate(over="ignore"):
         return np.asarray(v, np.float32)
 
 
-def _concrete(x):
+def _concrete(x: Any) -> np.ndarray | None:
     """The value of x as a NumPy array, or None while it is traced (validation runs outside jit)."""
     if isinstance(x, jax.core.Tracer):
         return None

@@ -4,11 +4,17 @@ into every results JSON so a number can be traced to the code and data that made
 from __future__ import annotations
 
 import hashlib
+import os
 import subprocess
 from importlib import metadata
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:
+    from semuav_jax.params import EnvParams
 
 
 def version() -> str:
@@ -37,15 +43,15 @@ def git_commit() -> str:
     return commit + ("+dirty" if dirty else "")
 
 
-def curves_hash(C) -> str:
+def curves_hash(C: npt.ArrayLike) -> str:
     """sha256 of the PSNR curves C as float32 (the array the simulator uses)."""
     return hashlib.sha256(np.ascontiguousarray(np.asarray(C, np.float32)).tobytes()).hexdigest()
 
 
-def file_hash(path) -> str:
+def file_hash(path: str | os.PathLike) -> str:
     """sha256 of a file's bytes."""
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def provenance(params) -> dict:
+def provenance(params: EnvParams) -> dict:
     return {"version": version(), "commit": git_commit(), "curves_sha256": curves_hash(params.C)}

@@ -2,17 +2,24 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 
 from semuav_jax.params import EnvParams
 
+if TYPE_CHECKING:
+    from semuav_jax.env import EnvState
 
-def distance_to_goal(q, params: EnvParams):
+
+def distance_to_goal(q: ArrayLike, params: EnvParams) -> jax.Array:
     d = q - params.q_fin
     return jnp.sqrt(jnp.sum(d * d))
 
 
-def reward(prev, new, params: EnvParams):
+def reward(prev: EnvState, new: EnvState, params: EnvParams) -> jax.Array:
     """r[t] for the transition prev -> new (two ``EnvState``s).
 
     paper (eq. 4.1): r_c = sum x phi / (sum x + eps); gain (eq. 4.2): r_c = kappa_c sum (phi - phi_prev);

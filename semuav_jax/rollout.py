@@ -22,17 +22,17 @@ from semuav_jax.params import EnvParams, validate_params
 TRACE_FIELDS = ("q", "v", "a_prev", "delay", "m", "phi", "x", "done")
 
 
-def random_policy_state(key, params: EnvParams):
+def random_policy_state(key: jax.Array, params: EnvParams) -> jax.Array:
     """The random policy's state: its K commands, drawn up front, uniform in [-1, 1]^2 (times a_max)."""
     return jax.random.uniform(key, (params.K, 2), minval=-1.0, maxval=1.0)
 
 
-def random_policy(draws, state: EnvState, params: EnvParams):
+def random_policy(draws: jax.Array, state: EnvState, params: EnvParams) -> tuple[jax.Array, jax.Array]:
     """Uniform acceleration in [-a_max, a_max]^2, the draw of slot t from ``random_policy_state``."""
     return draws[jnp.minimum(state.t, params.K - 1)] * params.a_max, draws
 
 
-def delay_draws(key, params: EnvParams):
+def delay_draws(key: jax.Array, params: EnvParams) -> jax.Array:
     """The K uniform draws of an episode's processing delays (eq. 3.1), slot t using entry t."""
     return jax.random.uniform(key, (params.K,))
 
@@ -48,15 +48,17 @@ class Carry(NamedTuple):
     live: jax.Array
 
 
-def start(policy: Policy, state: EnvState, policy_state, params: EnvParams) -> Carry:
+def start(policy: Policy, state: EnvState, policy_state: Any, params: EnvParams) -> Carry:
     zero = jnp.zeros((), jnp.int32)
     return Carry(state, observe(policy, state, params), policy_state, zero, zero)
 
 
-def _slot(policy: Policy, params: EnvParams, trace: bool):
+def _slot(
+    policy: Policy, params: EnvParams, trace: bool
+) -> Callable[[Carry, jax.Array], tuple[Carry, dict[str, jax.Array] | None]]:
     """The scan body of one slot: ``engine.slot`` and the slot's trace entry."""
 
-    def body(c: Carry, u):
+    def body(c: Carry, u: jax.Array) -> tuple[Carry, dict[str, jax.Array] | None]:
         state, obs, ps, out = slot(policy, u, c.state, c.obs, c.policy_state, params)
         c = Carry(state, obs, ps, c.shielded + out.shielded, c.live + ~c.state.done)
         tr = {f: getattr(state, f) for f in TRACE_FIELDS} | {"reward": out.reward} if trace else None
@@ -73,14 +75,21 @@ def finish(policy: Policy, c: Carry, params: EnvParams) -> dict:
     return metrics
 
 
-def _check_valid(metrics) -> None:
+def _check_valid(metrics: dict[str, jax.Array]) -> None:
     if not isinstance(metrics["valid"], jax.core.Tracer) and not bool(jnp.all(metrics["valid"])):
         raise ValueError(
             "the simulation left float32 (a rate, power or return overflowed): check the parameters' scale"
         )
 
 
-def episode(policy: Policy, key, params: EnvParams, policy_state=None, init_state=None, trace=False):
+def episode(
+    policy: Policy,
+    key: jax.Array,
+    params: EnvParams,
+    policy_state: Any = None,
+    init_state: EnvState | None = None,
+    trace: bool = False,
+) -> tuple[dict[str, jax.Array], dict[str, jax.Array] | None]:
     """One episode of K slots from ``init_state`` (or a reset with ``key``); returns (metrics, trace).
 
     The trace (when asked) holds, per slot, the state fields of ``TRACE_FIELDS`` and the reward.
@@ -96,7 +105,15 @@ def episode(policy: Policy, key, params: EnvParams, policy_state=None, init_stat
 
 
 @partial(jax.jit, static_argnames=("policy", "trace", "state_axes"))
-def _rollout(policy, keys, params, policy_state, init_state, trace, state_axes):
+def _rollout(
+    policy: Policy,
+    keys: jax.Array,
+    params: EnvParams,
+    policy_state: Any,
+    init_state: EnvState | None,
+    trace: bool,
+    state_axes: int | None,
+) -> tuple[dict[str, jax.Array], dict[str, jax.Array] | None]:
     run = partial(episode, policy, params=params, trace=trace)
     return jax.vmap(lambda k, ps, s0: run(k, policy_state=ps, init_state=s0), in_axes=(0, state_axes, 0))(
         keys, policy_state, init_state
@@ -104,8 +121,14 @@ def _rollout(policy, keys, params, policy_state, init_state, trace, state_axes):
 
 
 def rollout(
-    policy: Policy | Callable, keys, params: EnvParams, policy_state=None, init_state=None, trace=False, state_axes=0
-):
+    policy: Policy | Callable,
+    keys: jax.Array,
+    params: EnvParams,
+    policy_state: Any = None,
+    init_state: EnvState | None = None,
+    trace: bool = False,
+    state_axes: int | None = 0,
+) -> tuple[dict[str, jax.Array], dict[str, jax.Array] | None]:
     """Run ``len(keys)`` episodes in one jitted, vmapped program.
 
     ``policy_state`` carries a leading episode axis, or is shared by all episodes with
@@ -124,12 +147,16 @@ def rollout(
 
 
 @partial(jax.jit, static_argnames=("policy", "trace"))
-def _segment(policy, carry: Carry, draws, params, trace):
+def _segment(
+    policy: Policy, carry: Carry, draws: jax.Array, params: EnvParams, trace: bool
+) -> tuple[Carry, dict[str, jax.Array] | None]:
     """The slots of ``draws`` (E, R) from ``carry``: the body of :func:`episode` over R slots."""
     return jax.vmap(lambda c, u: jax.lax.scan(_slot(policy, params, trace), c, u))(carry, draws)
 
 
-def rollout_replanned(policy: Policy | Callable, keys, params: EnvParams, replan: Callable, every: int, trace=False):
+def rollout_replanned(
+    policy: Policy | Callable, keys: jax.Array, params: EnvParams, replan: Callable, every: int, trace: bool = False
+) -> tuple[dict[str, jax.Array], dict[str, jax.Array] | None]:
     """``rollout`` for a policy that a host function re-plans every ``every`` slots (receding horizon).
 
     ``replan(states, policy_state) -> policy_state`` runs outside ``jit`` on the batch of current

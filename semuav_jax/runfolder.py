@@ -12,6 +12,7 @@ import os
 import secrets
 import socket
 import time
+from collections.abc import Iterable
 from pathlib import Path
 
 from semuav_jax.io import atomic_write, check_writable_folder
@@ -39,12 +40,12 @@ def _read_marker(folder: Path) -> dict | None:
     return m
 
 
-def owned(folder) -> bool:
+def owned(folder: str | os.PathLike) -> bool:
     """Whether ``folder`` carries our marker."""
     return _read_marker(Path(folder)) is not None
 
 
-def foreign_files(folder: Path, listed=()) -> list[str]:
+def foreign_files(folder: Path, listed: Iterable[str] = ()) -> list[str]:
     """Names in ``folder`` we did not write: not the marker or lock, not listed in ``listed``
     (relative paths), not an atomic_write temporary of a listed file, not a folder carrying our
     marker or holding listed files."""
@@ -78,12 +79,12 @@ class RunFolder:
     lists first (and starts a new run id); ``adopt`` (a tuple of names) accepts a folder without our
     marker that holds only those names (a run folder of an older version, resumed)."""
 
-    def __init__(self, path: Path, marker: dict, locked: bool = True, readonly: bool = False):
+    def __init__(self, path: Path, marker: dict, locked: bool = True, readonly: bool = False) -> None:
         self.path, self.marker, self.locked = path, marker, locked  # locked: this claim took the lock
         self.readonly = readonly
 
     @classmethod
-    def view(cls, path) -> RunFolder:
+    def view(cls, path: str | os.PathLike) -> RunFolder:
         """The folder as another process of a multi-process run sees it: process 0 claimed it and
         writes; this view reads, and its writes and removals do nothing."""
         path = Path(path)
@@ -98,7 +99,9 @@ class RunFolder:
         return list(self.marker["files"])
 
     @classmethod
-    def claim(cls, path, kind: str, overwrite: bool = False, adopt: tuple = (), what: str = "--out") -> RunFolder:
+    def claim(
+        cls, path: str | os.PathLike, kind: str, overwrite: bool = False, adopt: tuple = (), what: str = "--out"
+    ) -> RunFolder:
         path = Path(path)
         check_writable_folder(path, what)
         marker = _read_marker(path)
@@ -133,7 +136,7 @@ class RunFolder:
         return folder
 
     @staticmethod
-    def _refuse_foreign(path: Path, adopt, what: str) -> None:
+    def _refuse_foreign(path: Path, adopt: Iterable[str], what: str) -> None:
         names = foreign_files(path, adopt)
         if names:
             shown = ", ".join(names[:5]) + (f" and {len(names) - 5} more" if len(names) > 5 else "")
@@ -230,7 +233,7 @@ def _lock(path: Path) -> bool:
     raise FolderError(f"could not lock {path} ({lock} keeps changing)")
 
 
-def release(path) -> None:
+def release(path: str | os.PathLike) -> None:
     """Remove our lock of ``path`` (no-op if we do not hold it)."""
     lock = (Path(path) / LOCK).resolve()
     if lock in _HELD:

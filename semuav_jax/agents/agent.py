@@ -11,9 +11,10 @@
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import jax
 import jax.numpy as jnp
@@ -31,6 +32,9 @@ from semuav_jax.io import atomic_write
 from semuav_jax.keys import TEST_SEED, episode_keys
 from semuav_jax.params import EnvParams
 from semuav_jax.stats import mean_ci, wilson_interval
+
+if TYPE_CHECKING:
+    from semuav_jax.env import EnvState
 
 FORMAT = "semuav-jax agent 1"
 
@@ -57,7 +61,7 @@ class Agent:
         return q_network(self.params, self.config)
 
     @classmethod
-    def from_run(cls, folder, seed: int = 0) -> Agent:
+    def from_run(cls, folder: str | os.PathLike, seed: int = 0) -> Agent:
         """Seed ``seed`` of a finished ``train.py`` run folder."""
         run, nets = load_run(folder)
         if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or not 0 <= seed < run.seeds:
@@ -69,14 +73,14 @@ class Agent:
         """A seed of the shipped agent (semuav_jax/data/agent, the output of ``python train.py``)."""
         return cls.from_run(shipped_folder(), seed)
 
-    def save(self, path) -> Path:
+    def save(self, path: str | os.PathLike) -> Path:
         """One file: the run description and the weights (msgpack), written atomically."""
         weights = jax.tree.map(np.asarray, self.weights)
         blob = {"format": FORMAT, "run": json.dumps(self.run.to_dict()), "weights": weights}
         return atomic_write(path, serialization.msgpack_serialize(blob))
 
     @classmethod
-    def load(cls, path) -> Agent:
+    def load(cls, path: str | os.PathLike) -> Agent:
         """The agent saved by :meth:`save`; ValueError (one line) for any other file, and for one
         whose weights do not match its run description's network or are not finite."""
         try:
@@ -92,12 +96,12 @@ class Agent:
         check_weights(run, blob["weights"], path)
         return cls(run, jax.tree.map(jnp.asarray, blob["weights"]))
 
-    def q_values(self, state, params: EnvParams | None = None):
+    def q_values(self, state: EnvState, params: EnvParams | None = None) -> jax.Array:
         """Q-values of every action for one ``EnvState`` (jittable)."""
         params = self.params if params is None else params
         return self.network.apply(self.weights, agent_input(state, params, self.config))
 
-    def act(self, state, params: EnvParams | None = None):
+    def act(self, state: EnvState, params: EnvParams | None = None) -> tuple[jax.Array, jax.Array]:
         """The BS's command for one ``EnvState``: (action after the shield, acceleration (2,)) for
         ``semuav_jax.env.transition`` (jittable; greedy, epsilon = 0)."""
         params = self.params if params is None else params

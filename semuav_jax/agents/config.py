@@ -9,11 +9,12 @@ slowly for a 10-minute CPU budget (docs/ddqn.md).
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 from semuav_jax.actions import ACTION_MODES
 
 
-def _f(default, help: str):
+def _f(default: Any, help: str) -> Any:
     """A config field with its command-line help (``train.py`` derives its options from these)."""
     return dataclasses.field(default=default, metadata={"help": help})
 
@@ -52,7 +53,7 @@ class DDQNConfig:
         "(one agent for every B); none: the scenario's B",
     )
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in ("hidden", "bandwidth_range"):  # lists (from JSON or the command line) become tuples
             if isinstance(getattr(self, name), list):
                 object.__setattr__(self, name, tuple(getattr(self, name)))

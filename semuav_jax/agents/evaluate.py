@@ -3,9 +3,12 @@ vmapped program over episodes, the metrics of MODEL.md section 8 plus ``shield_s
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.typing import ArrayLike
 
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.policy import greedy_policy
@@ -13,8 +16,13 @@ from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import rollout
 from semuav_jax.sharding import gather, shard_episodes
 
+if TYPE_CHECKING:
+    from semuav_jax.agents.network import QNetwork
 
-def evaluate_agent(network, net_params, config: DDQNConfig, keys, params: EnvParams, trace: bool = False):
+
+def evaluate_agent(
+    network: QNetwork, net_params: Any, config: DDQNConfig, keys: jax.Array, params: EnvParams, trace: bool = False
+) -> dict[str, np.ndarray] | tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """Metrics (dict of (E,) NumPy arrays, with ``shield_share``) of the greedy policy of ``net_params``
     on the episodes ``keys``; with ``trace``, also the per-slot trace of ``rollout``."""
     validate_params(params)
@@ -26,7 +34,9 @@ def evaluate_agent(network, net_params, config: DDQNConfig, keys, params: EnvPar
 MAX_RUNS = 2**16  # episodes (seeds x bandwidths x layouts) in one compiled evaluation
 
 
-def seed_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams, bandwidths) -> dict:
+def seed_metrics(
+    network: QNetwork, nets: Any, config: DDQNConfig, keys: jax.Array, params: EnvParams, bandwidths: ArrayLike
+) -> dict:
     """Per-episode metrics (seeds, len(bandwidths), E) of the greedy policy of every seed of ``nets``
     (weights with a leading seed axis) at every B, in one jitted program vmapped over seeds and B
     and sharded over every device of every process; run in chunks of episodes so that one program
@@ -36,7 +46,8 @@ def seed_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams, ban
         raise ValueError(f"bandwidths must be finite and > 0 Hz, got {bandwidths}")
     policy = greedy_policy(network, config)
 
-    def at(net, b, k):  # the keys are an argument: a jit may not close over another process's shards
+    # the keys are an argument: a jit may not close over another process's shards
+    def at(net: Any, b: jax.Array, k: jax.Array) -> dict[str, jax.Array]:
         return rollout(policy, k, params.replace(B=b), net, state_axes=None)[0]
 
     run = jax.jit(jax.vmap(jax.vmap(at, (None, 0, None)), (0, None, None)))

@@ -10,6 +10,8 @@ so that an MLP can use it. Fixed transforms without parameters.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import jax
 import jax.numpy as jnp
 
@@ -19,12 +21,15 @@ from semuav_jax.control import time_home, time_via
 from semuav_jax.observation import DEVICE_FEATURES, GLOBAL_FEATURES
 from semuav_jax.params import EnvParams
 
+if TYPE_CHECKING:
+    from semuav_jax.env import EnvState
+
 NEAR_GAIN = 20.0  # tanh(20 x): resolves tens of metres in area-normalized offsets
 SLACK_SPEED = 12.0  # m/s: the pass speed at which a device's time slack is computed
 B_REF = 20e3  # Hz: the bandwidth feature is log2(B / B_REF)
 
 
-def table_features(obs):
+def table_features(obs: jax.Array) -> jax.Array:
     """The observation (eq. 5.1) made permutation-invariant: device blocks sorted nearest first
     (a device's index carries no meaning on random layouts), and every relative offset (devices and
     goal) with a ``tanh(20 x)`` companion that resolves the ~32 m communication radius, which the
@@ -38,7 +43,7 @@ def table_features(obs):
     return jnp.concatenate([glob, near_goal, dev.reshape(dev.shape[:-2] + (-1,))], axis=-1)
 
 
-def waypoint_features(state, params: EnvParams):
+def waypoint_features(state: EnvState, params: EnvParams) -> jax.Array:
     """The input of a waypoint agent for one ``EnvState``: a flat float32 vector, entries in about [-1, 1].
 
     Global: q, v, a_prev, time left, goal offset and its tanh, the time slack home (eq. 7.5) / T,
@@ -70,7 +75,7 @@ def waypoint_features(state, params: EnvParams):
     pos = state.dev_pos[order]
     off = (pos - state.q) / area
 
-    def slack(p):
+    def slack(p: jax.Array) -> jax.Array:
         return (left - time_via(state.q, state.v, p, SLACK_SPEED, params)) / T
 
     phi = state.phi[order]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import flax.linen as nn
+import jax
 import jax.numpy as jnp
 
 from semuav_jax import actions
@@ -19,7 +20,7 @@ class QNetwork(nn.Module):
     dueling: bool = False
 
     @nn.compact
-    def __call__(self, x):
+    def __call__(self, x: jax.Array) -> jax.Array:
         for h in self.hidden:
             x = nn.relu(nn.Dense(h)(x))
         if not self.dueling:

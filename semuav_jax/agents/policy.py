@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import jax
 import jax.numpy as jnp
@@ -20,8 +20,12 @@ from semuav_jax.env import reset_state
 from semuav_jax.observation import observation
 from semuav_jax.params import EnvParams
 
+if TYPE_CHECKING:
+    from semuav_jax.agents.network import QNetwork
+    from semuav_jax.env import EnvState
 
-def agent_input(state, params: EnvParams, config: DDQNConfig):
+
+def agent_input(state: EnvState, params: EnvParams, config: DDQNConfig) -> jax.Array:
     """The Q-network's input for one ``EnvState`` (``agents/features.py``)."""
     if config.actions == "waypoint":
         return waypoint_features(state, params)
@@ -49,10 +53,10 @@ def _observe(config: DDQNConfig) -> Callable:
 
 
 @functools.cache
-def greedy_policy(network, config: DDQNConfig) -> Policy:
+def greedy_policy(network: QNetwork, config: DDQNConfig) -> Policy:
     """The trained agent: argmax Q of its input, through the shield. Policy state: the weights."""
 
-    def act(net, obs, params: EnvParams):
+    def act(net: Any, obs: jax.Array, params: EnvParams) -> tuple[jax.Array, Any]:
         return jnp.argmax(network.apply(net, obs)), net
 
     return Policy(act=act, mode=config.actions, observe=_observe(config), shield=agent_shield(config))
@@ -70,10 +74,10 @@ class Explore:
 
 
 @functools.cache
-def explore_policy(network, config: DDQNConfig) -> Policy:
+def explore_policy(network: QNetwork, config: DDQNConfig) -> Policy:
     """Epsilon-greedy :func:`greedy_policy` (training), through the same shield."""
 
-    def act(ps: Explore, obs, params: EnvParams):
+    def act(ps: Explore, obs: jax.Array, params: EnvParams) -> tuple[jax.Array, Explore]:
         greedy = jnp.argmax(network.apply(ps.net, obs))
         return jnp.where(ps.u < ps.eps, ps.random_action, greedy), ps
 

@@ -59,7 +59,7 @@ def replay_add(buf: Replay, batch: Transition) -> Replay:
     return Replay(data=data, pos=(buf.pos + n) % buf.capacity, size=jnp.minimum(buf.size + n, buf.capacity))
 
 
-def replay_sample(buf: Replay, key, batch_size: int) -> Transition:
+def replay_sample(buf: Replay, key: jax.Array, batch_size: int) -> Transition:
     """Uniform sample (with replacement) among the ``size`` stored transitions."""
     idx = jax.random.randint(key, (batch_size,), 0, jnp.maximum(buf.size, 1))
     return jax.tree.map(lambda d: d[idx], buf.data)

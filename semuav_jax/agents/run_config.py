@@ -13,11 +13,16 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.scenarios import SCENARIOS, scenario_params
 from semuav_jax.params import EnvParams
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from semuav_jax.curves import PSNRCurves
 
 FORMAT = "semuav-jax run 2"
 SEED_RANGE = 2**32  # jax.random.PRNGKey aliases seeds modulo 2**32
@@ -39,7 +44,7 @@ PRESETS = {
 NOT_ENV = ("C", "device_pos", "device_img", "layout")
 
 
-def _f(default, help: str, **meta):
+def _f(default: Any, help: str, **meta: Any) -> Any:
     return dataclasses.field(default=default, metadata={"help": help, **meta})
 
 
@@ -60,7 +65,7 @@ class RunConfig:
     preset: str = "default"
     command: str = ""
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         bad = lambda name, want: ValueError(f"{name} must be {want}, got {getattr(self, name)!r}")
         integer = lambda v: isinstance(v, int) and not isinstance(v, bool)
         for name in ("seeds", "segments", "validation_episodes", "workers"):
@@ -88,7 +93,9 @@ class RunConfig:
                 raise ValueError(f"env: {k} must be a finite number, got {v!r}")
 
     @classmethod
-    def from_preset(cls, preset: str = "default", env: dict | None = None, agent: dict | None = None, **run):
+    def from_preset(
+        cls, preset: str = "default", env: dict | None = None, agent: dict | None = None, **run: Any
+    ) -> RunConfig:
         """The preset's env and agent parts with ``env`` / ``agent`` overrides and the run options ``run``."""
         if preset not in PRESETS:
             raise ValueError(f"preset must be one of {tuple(PRESETS)}, got {preset!r}")
@@ -96,7 +103,7 @@ class RunConfig:
         config = DDQNConfig(**{**p["agent"], **(agent or {})})
         return cls(agent=config, env={**p["env"], **(env or {})}, preset=preset, **run)
 
-    def env_params(self, scenario: str | None = None, curves=None) -> EnvParams:
+    def env_params(self, scenario: str | None = None, curves: PSNRCurves | np.ndarray | None = None) -> EnvParams:
         """The run's ``EnvParams`` (of another ``scenario`` or ``curves`` when given): ValueError (one
         line) for an override ``make_params`` refuses or a curves file that does not load."""
         from semuav_jax.curves import load_curves, synthetic_curves
@@ -108,7 +115,7 @@ class RunConfig:
         except (TypeError, KeyError) as e:
             raise ValueError(f"env: {e}") from None
 
-    def replace(self, **changes) -> RunConfig:
+    def replace(self, **changes: Any) -> RunConfig:
         return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict[str, Any]:
@@ -116,7 +123,7 @@ class RunConfig:
         return json.loads(json.dumps({"format": FORMAT, **d, "agent": self.agent.to_dict()}))
 
     @classmethod
-    def from_dict(cls, d, where: str = "the run config") -> RunConfig:
+    def from_dict(cls, d: Any, where: str = "the run config") -> RunConfig:
         """The config of a config.json object (format 2, or format 1 of earlier run folders); ValueError
         (one line, naming ``where``) for anything that is not one or holds a value the options refuse."""
         if isinstance(d, dict) and "format" not in d and isinstance(d.get("ddqn"), dict):

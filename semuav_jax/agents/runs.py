@@ -7,8 +7,10 @@ with the references). ``train.py`` writes them; ``eval.py`` and the shipped agen
 from __future__ import annotations
 
 import json
+import os
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 from flax import serialization
 
@@ -21,12 +23,12 @@ RUN_FILES = (CONFIG_FILE, METRICS_FILE, CKPT_FILE, MODEL_FILE, EVAL_FILE, EVAL_M
 SHIPPED = "agent"  # the shipped run folder, semuav_jax/data/agent: the output of ``python train.py``
 
 
-def finished(folder) -> bool:
+def finished(folder: str | os.PathLike) -> bool:
     folder = Path(folder)
     return (folder / CONFIG_FILE).is_file() and (folder / MODEL_FILE).is_file()
 
 
-def check_weights(run: RunConfig, weights, where, seeds: int | None = None) -> None:
+def check_weights(run: RunConfig, weights: Any, where: str | os.PathLike, seeds: int | None = None) -> None:
     """ValueError (one line) unless ``weights`` are finite arrays with the shapes of the Q-network
     of ``run``, with a leading axis of ``seeds`` when given."""
     import jax
@@ -61,7 +63,7 @@ def check_weights(run: RunConfig, weights, where, seeds: int | None = None) -> N
         raise ValueError(f"{where}: its weights are not finite (NaN or inf: the training diverged)")
 
 
-def read_config(path) -> RunConfig:
+def read_config(path: str | os.PathLike) -> RunConfig:
     """The ``RunConfig`` of a config.json; ValueError (one line) for a file that is not one."""
     try:
         d = json.loads(Path(path).read_text())
@@ -70,7 +72,7 @@ def read_config(path) -> RunConfig:
     return RunConfig.from_dict(d, path)
 
 
-def load_run(folder) -> tuple[RunConfig, dict]:
+def load_run(folder: str | os.PathLike) -> tuple[RunConfig, dict]:
     """(run config, weights with a leading seed axis) of a finished run folder, its weights checked
     against its config and finite."""
     folder = Path(folder)

@@ -3,9 +3,14 @@ uniform in the 1000 x 600 m area) and frozen here as constants."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from semuav_jax.params import EnvParams, make_params
+
+if TYPE_CHECKING:
+    from semuav_jax.curves import PSNRCurves
 
 PAPER_DEVICE_POS = np.array(
     [
@@ -27,7 +32,7 @@ PAPER_DEVICE_IMG = np.array([1, 1, 6, 3, 6, 2, 5, 6, 6, 1], np.int32)
 SCENARIOS = ("fixed", "random")
 
 
-def scenario_params(scenario: str, curves=None, **overrides) -> EnvParams:
+def scenario_params(scenario: str, curves: PSNRCurves | np.ndarray | None = None, **overrides: Any) -> EnvParams:
     """EnvParams of a named scenario: ``fixed`` (the paper layout above) or ``random`` (a new layout per reset).
 
     Image indices of the paper layout are taken modulo the number of images of ``curves``.

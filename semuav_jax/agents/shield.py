@@ -13,27 +13,34 @@ so it is part of the policy, not a change of the environment.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 
 from semuav_jax.actions import HOME, action_table, axis_levels
 from semuav_jax.control import airspace_cap, home_command, time_home
 from semuav_jax.params import EnvParams
 
+if TYPE_CHECKING:
+    from semuav_jax.env import EnvState
 
-def home_speed(params: EnvParams):
+
+def home_speed(params: EnvParams) -> jax.Array:
     """The cruise speed assumed on the way home: the command aims at v_max, but the nearest table action
     leaves a velocity error of up to half a level step (a_max tau / (levels - 1)) on each axis."""
     dead = jnp.sqrt(2.0) * params.a_max * params.tau / max(params.levels - 1, 1)
     return jnp.maximum(params.v_max - dead, 0.5 * params.v_max)
 
 
-def home_action(q, v, params: EnvParams):
+def home_action(q: jax.Array, v: jax.Array, params: EnvParams) -> jax.Array:
     """Index of the table action nearest to the controller's home command (eq. 7.1 towards q_fin)."""
     a = home_command(q, v, params.v_max, params)
     return jnp.argmin(jnp.sum((action_table(params) - a) ** 2, axis=-1))
 
 
-def airspace_action(action, q, v, params: EnvParams):
+def airspace_action(action: ArrayLike, q: jax.Array, v: jax.Array, params: EnvParams) -> jax.Array:
     """``action`` with each axis level lowered (towards braking) just enough that v + a tau stays
     within the airspace cap of eq. 7.2; unchanged without an ``airspace_margin``."""
     lv = axis_levels(params)
@@ -49,14 +56,14 @@ def airspace_action(action, q, v, params: EnvParams):
     return i[0] * params.levels + i[1]
 
 
-def late(state, params: EnvParams, margin: float, cruise=None):
+def late(state: EnvState, params: EnvParams, margin: float, cruise: ArrayLike | None = None) -> jax.Array:
     """True once the time left after this slot, (K - t - 1) tau, is at most the flight home of
     eq. 7.5 at v_max (cruising at ``cruise``) + ``margin`` seconds."""
     left = (params.K - state.t - 1) * params.tau
     return left <= time_home(state.q, state.v, params.v_max, params, cruise=cruise) + margin
 
 
-def shield(action, state, params: EnvParams, margin: float | None):
+def shield(action: ArrayLike, state: EnvState, params: EnvParams, margin: float | None) -> jax.Array:
     """The table action the BS sends: :func:`home_action` when :func:`late` (cruising at
     :func:`home_speed`), else ``action`` kept inside the airspace (:func:`airspace_action`).
     ``margin`` None: no shield at all."""
@@ -69,7 +76,7 @@ def shield(action, state, params: EnvParams, margin: float | None):
     )
 
 
-def waypoint_shield(action, state, params: EnvParams, margin: float | None):
+def waypoint_shield(action: ArrayLike, state: EnvState, params: EnvParams, margin: float | None) -> jax.Array:
     """The waypoint action (eq. 6.2) the BS sends: HOME when :func:`late`, else ``action`` (the
     controller of eq. 7.1 already keeps every waypoint command inside the airspace)."""
     if margin is None:

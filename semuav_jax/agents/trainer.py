@@ -14,12 +14,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from functools import partial
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 import optax
 from flax import struct
+from jax.typing import ArrayLike
 
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.network import QNetwork, num_actions, q_network
@@ -30,10 +31,14 @@ from semuav_jax.env import reset_state
 from semuav_jax.metrics import episode_metrics
 from semuav_jax.params import EnvParams, validate_params
 
+if TYPE_CHECKING:
+    from semuav_jax.engine import SlotOut
+    from semuav_jax.env import EnvState
+
 LOGGED = ("mean_psnr", "return", "arrived", "coverage")  # episode metrics averaged over finished episodes
 
 
-def train_bandwidths(config: DDQNConfig, params: EnvParams):
+def train_bandwidths(config: DDQNConfig, params: EnvParams) -> jax.Array:
     """(num_envs,) bandwidth of each training env: evenly spaced over ``bandwidth_range``, or params.B."""
     if config.bandwidth_range is None:
         return jnp.full((config.num_envs,), params.B, jnp.float32)
@@ -41,13 +46,15 @@ def train_bandwidths(config: DDQNConfig, params: EnvParams):
     return jnp.linspace(lo, hi, config.num_envs).astype(jnp.float32)
 
 
-def epsilon(step, config: DDQNConfig):
+def epsilon(step: ArrayLike, config: DDQNConfig) -> jax.Array:
     """Linear decay from eps_start to eps_end over the first eps_decay_frac of the learning steps."""
     n = max(1, int(config.eps_decay_frac * config.num_chunks * config.steps_per_chunk))
     return optax.linear_schedule(config.eps_start, config.eps_end, n)(step)
 
 
-def double_q_target(q_next_online, q_next_target, reward, done, gamma):
+def double_q_target(
+    q_next_online: jax.Array, q_next_target: jax.Array, reward: jax.Array, done: jax.Array, gamma: float
+) -> jax.Array:
     """y = r + gamma (1 - done) Q_target(s', argmax_a Q_online(s', a)) (van Hasselt et al. 2016)."""
     a_star = jnp.argmax(q_next_online, axis=-1)
     q_eval = jnp.take_along_axis(q_next_target, a_star[..., None], axis=-1)[..., 0]
@@ -87,7 +94,7 @@ class Trainer(NamedTuple):
     train: Callable  # key -> (TrainState, per-chunk metrics), the whole run
 
 
-def loss(tr: Trainer, params, target_params, batch: Transition):
+def loss(tr: Trainer, params: Any, target_params: Any, batch: Transition) -> jax.Array:
     """Huber loss of Q(s, a) against the double-Q n-step target."""
     q = tr.network.apply(params, batch.obs)
     q_a = jnp.take_along_axis(q, batch.action[:, None], axis=-1)[:, 0]
@@ -97,7 +104,7 @@ def loss(tr: Trainer, params, target_params, batch: Transition):
     return jnp.mean(optax.huber_loss(q_a, jax.lax.stop_gradient(y)))
 
 
-def update(tr: Trainer, ts: TrainState, key):
+def update(tr: Trainer, ts: TrainState, key: jax.Array) -> tuple[TrainState, jax.Array]:
     """One gradient step on a replay minibatch; returns (ts, loss)."""
     batch = tr.buffer.sample(ts.replay, key).experience
     value, grads = jax.value_and_grad(partial(loss, tr))(ts.params, ts.target_params, batch)
@@ -105,7 +112,9 @@ def update(tr: Trainer, ts: TrainState, key):
     return ts.replace(params=optax.apply_updates(ts.params, upd), opt_state=opt_state, updates=ts.updates + 1), value
 
 
-def env_slot(tr: Trainer, key, state, obs, ps: Explore, params: EnvParams):
+def env_slot(
+    tr: Trainer, key: jax.Array, state: EnvState, obs: jax.Array, ps: Explore, params: EnvParams
+) -> tuple[EnvState, jax.Array, SlotOut, jax.Array, jax.Array, dict[str, jax.Array]]:
     """``engine.slot`` for one env, then gymnax's auto-reset (a finished episode restarts with a new layout)."""
     k_step, k_reset = jax.random.split(key)
     new, new_obs, _, out = slot(tr.policy, jax.random.uniform(k_step), state, obs, ps, params)
@@ -115,7 +124,9 @@ def env_slot(tr: Trainer, key, state, obs, ps: Explore, params: EnvParams):
     return state, obs, out, new_obs, new.done, episode_metrics(new, params)
 
 
-def env_step(tr: Trainer, ts: TrainState, key, eps):
+def env_step(
+    tr: Trainer, ts: TrainState, key: jax.Array, eps: jax.Array
+) -> tuple[TrainState, tuple[jax.Array, dict[str, jax.Array], jax.Array]]:
     """One vmapped env step under epsilon-greedy; the transition enters the n-step window (not yet the memory)."""
     E = tr.config.num_envs
     k_eps, k_rand, k_env = jax.random.split(key, 3)
@@ -132,13 +143,15 @@ def env_step(tr: Trainer, ts: TrainState, key, eps):
     return ts.replace(window=window, env_state=state, obs=obs), (done, met, jnp.mean(out.shielded.astype(jnp.float32)))
 
 
-def store_step(tr: Trainer, ts: TrainState, key, eps):
+def store_step(
+    tr: Trainer, ts: TrainState, key: jax.Array, eps: jax.Array
+) -> tuple[TrainState, tuple[jax.Array, dict[str, jax.Array], jax.Array]]:
     """:func:`env_step`, then the window's oldest n-step transition into the memory."""
     ts, out = env_step(tr, ts, key, eps)
     return ts.replace(replay=tr.buffer.add(ts.replay, n_step_transition(ts.window, tr.config.gamma))), out
 
 
-def init(tr: Trainer, key) -> TrainState:
+def init(tr: Trainer, key: jax.Array) -> TrainState:
     """A fresh agent and envs; the n-step window and then the memory filled with random actions."""
     c, E = tr.config, tr.config.num_envs
     k_net, k_env, k_warm, k_run = jax.random.split(key, 4)
@@ -167,7 +180,7 @@ def init(tr: Trainer, key) -> TrainState:
     return ts
 
 
-def train_step(tr: Trainer, ts: TrainState, _=None):
+def train_step(tr: Trainer, ts: TrainState, _=None) -> tuple[TrainState, dict[str, jax.Array]]:
     """One env step (stored) and ``updates_per_step`` gradient updates; returns (ts, step stats)."""
     key, k_act, k_upd = jax.random.split(ts.key, 3)
     ts = ts.replace(key=key)
@@ -179,7 +192,7 @@ def train_step(tr: Trainer, ts: TrainState, _=None):
     return ts, {"episodes": jnp.sum(d), "loss": jnp.mean(losses), "shield_share": shielded, **stats}
 
 
-def train_chunk(tr: Trainer, ts: TrainState, _=None):
+def train_chunk(tr: Trainer, ts: TrainState, _=None) -> tuple[TrainState, dict[str, jax.Array]]:
     """``steps_per_chunk`` train steps and the periodic target sync; returns (ts, chunk metrics)."""
     c = tr.config
     eps = epsilon(ts.step, c)
@@ -200,7 +213,7 @@ def train_chunk(tr: Trainer, ts: TrainState, _=None):
     }
 
 
-def run(tr: Trainer, ts: TrainState, n_chunks: int):
+def run(tr: Trainer, ts: TrainState, n_chunks: int) -> tuple[TrainState, dict[str, jax.Array]]:
     """``n_chunks`` chunks (static) from ``ts``."""
     return jax.lax.scan(partial(train_chunk, tr), ts, None, n_chunks)
 

@@ -4,11 +4,14 @@
 ``python -m baselines.report`` and ``python -m semuav_jax.experiments.learned`` are shims for them.
 The top floor: free to import every other part of the package; nothing below imports it."""
 
+from __future__ import annotations
+
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 
-def interruptible(run, argv, resume_hint: str) -> int:
+def interruptible(run: Callable[[list[str] | None], int], argv: list[str] | None, resume_hint: str) -> int:
     """``run(argv)``, with Ctrl-C ending in one line and exit code 130 instead of a traceback (every
     file the commands write is written atomically, so the folder stays consistent)."""
     try:

@@ -20,11 +20,11 @@ from semuav_jax.io import atomic_write, check_writable_folder
 from semuav_jax.params import make_params
 
 
-def main(argv=None) -> None:
+def main(argv: list[str] | None = None) -> None:
     distributed.guarded(_main, argv)
 
 
-def _main(argv=None) -> None:
+def _main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--episodes", type=int, default=1000, help="test layouts")
     ap.add_argument("--validation-episodes", type=int, default=500, help="layouts that choose v_b*")

@@ -9,7 +9,7 @@ import sys
 from semuav_jax.experiments.learned import evaluate_run, markdown, validation_table
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     """``semuav-compare RUN``: (re)write RUN/eval.json and eval.md; ``--validation RUN [RUN ...]``:
     print the seeds' mean PSNR on validation layouts."""
     ap = argparse.ArgumentParser(description="Compare a train.py run's seeds with the tuned baselines and the planner.")

@@ -17,7 +17,7 @@ import sys
 from semuav_jax.jscc.config import CHANNELS, TrainConfig
 
 
-def _train(a) -> None:
+def _train(a: argparse.Namespace) -> None:
     from semuav_jax.jscc import data
     from semuav_jax.jscc.train import check_out, load_config, train
 
@@ -50,7 +50,7 @@ def _train(a) -> None:
         print(f"step {step}/{cfg.steps}, loss {loss:.5f}, {secs / 60:.1f} min total; checkpoint in {a.out}")
 
 
-def _curves(a) -> None:
+def _curves(a: argparse.Namespace) -> None:
     from semuav_jax.jscc.evaluate import write_curves
 
     path, C, meta = write_curves(a.ckpt, a.out, model_out=a.model_out)
@@ -59,13 +59,13 @@ def _curves(a) -> None:
         print(f"  mean PSNR at k = {frac} M: {meta['mean_psnr_db'][frac]:.2f} dB")
 
 
-def _figure(a) -> None:
+def _figure(a: argparse.Namespace) -> None:
     from semuav_jax.jscc.evaluate import make_figure
 
     print(f"wrote {make_figure(a.out, model=a.model, curves=a.curves)}")
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m semuav_jax.jscc", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="cmd", required=True)
     t = sub.add_parser("train", help="train (or resume) the DeepJSCC; checkpoints in --out")

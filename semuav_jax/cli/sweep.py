@@ -18,7 +18,7 @@ from pathlib import Path
 from semuav_jax import distributed
 
 
-def parse_args(argv=None):
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("grid", help="grid file (.toml or .json)")
     p.add_argument("--out", default="sweep", help="output folder (default: %(default)s)")
@@ -30,11 +30,11 @@ def parse_args(argv=None):
     return p.parse_args(argv)
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     return distributed.guarded(_main, argv)
 
 
-def _main(argv=None) -> int:
+def _main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     name = Path(sys.argv[0]).name
     from semuav_jax.experiments import sweep

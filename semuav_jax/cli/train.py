@@ -13,11 +13,16 @@ import argparse
 import dataclasses
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from semuav_jax import distributed
 from semuav_jax.cli import interruptible
 from semuav_jax.cli.train_folder import NONE, UsageError, prepare_folder, saved_config
+
+if TYPE_CHECKING:
+    from semuav_jax.agents.run_config import RunConfig
 
 # the env overrides with an option of their own (any other: --env KEY=VALUE); option -> make_params key
 ENV_OPTIONS = {
@@ -28,7 +33,7 @@ ENV_OPTIONS = {
 }
 
 
-def _option_type(default):
+def _option_type(default: Any) -> dict[str, Any]:
     """argparse type and nargs of a config field from its default value."""
     if isinstance(default, bool):
         return {"type": _boolean}
@@ -45,20 +50,20 @@ def _boolean(text: str) -> bool:
     return text.lower() == "true"
 
 
-def _none_or(kind):
-    def parse(text: str):
+def _none_or(kind: Callable[[str], Any]) -> Callable[[str], Any]:
+    def parse(text: str) -> Any:
         return NONE if text.lower() == NONE else kind(text)
 
     parse.__name__ = kind.__name__
     return parse
 
 
-def _shown(default) -> str:
+def _shown(default: Any) -> str:
     values = default if isinstance(default, tuple) else (default,)
     return "none" if default is None else " ".join(f"{x:g}" if isinstance(x, float) else str(x) for x in values)
 
 
-def _env_pair(text: str):
+def _env_pair(text: str) -> tuple[str, Any]:
     key, sep, value = text.partition("=")
     if not sep or not key:
         raise argparse.ArgumentTypeError(f"expected KEY=VALUE (a make_params override), got {text!r}")
@@ -68,7 +73,7 @@ def _env_pair(text: str):
         return key, value
 
 
-def parse_args(argv=None):
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     from semuav_jax.agents.config import DDQNConfig
     from semuav_jax.agents.run_config import PRESETS, RunConfig
 
@@ -127,12 +132,12 @@ def parse_args(argv=None):
     return args
 
 
-def given_options(args) -> dict:
+def given_options(args: argparse.Namespace) -> dict:
     """The config values given on the command line: {"env": {...}, "agent": {...}, run option: value}."""
     from semuav_jax.agents.config import DDQNConfig
     from semuav_jax.agents.run_config import RunConfig
 
-    def value(name):
+    def value(name: str) -> Any:
         v = getattr(args, name)
         if isinstance(v, list) and NONE in v and len(v) > 1:
             raise UsageError(f"--{name.replace('_', '-')}: give either none or numbers, got {' '.join(map(str, v))}")
@@ -149,7 +154,7 @@ def given_options(args) -> dict:
     return {"env": env, "agent": agent, **run}
 
 
-def run_config(args):
+def run_config(args: argparse.Namespace) -> RunConfig:
     """The ``RunConfig`` of a new run: the preset with the options given (an error names the option)."""
     from semuav_jax.agents.config import DDQNConfig
     from semuav_jax.agents.run_config import RunConfig
@@ -164,12 +169,12 @@ def run_config(args):
     return cfg
 
 
-def load_run_config(args):
+def load_run_config(args: argparse.Namespace) -> RunConfig:
     """The run's config: read back from the run folder on --resume, else built from the options."""
     return saved_config(args, given_options(args)) if args.resume else run_config(args)
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     return interruptible(
         lambda a: distributed.guarded(_main, a),
         argv,
@@ -178,7 +183,7 @@ def main(argv=None) -> int:
     )
 
 
-def _main(argv=None) -> int:
+def _main(argv: list[str] | None = None) -> int:
     from semuav_jax.runfolder import RunFolder
 
     try:

@@ -4,10 +4,12 @@ back and re-validated on ``--resume``, the folder claimed (marker, manifest, loc
 
 from __future__ import annotations
 
+import argparse
 import csv
 import hashlib
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from semuav_jax.agents.runs import (
     CKPT_FILE,
@@ -18,6 +20,9 @@ from semuav_jax.agents.runs import (
 )
 from semuav_jax.runfolder import RunFolder
 
+if TYPE_CHECKING:
+    from semuav_jax.agents.run_config import RunConfig
+
 INT_COLUMNS = ("seed", "chunk", "env_steps", "episodes")
 NONE = "none"  # an option set to none (e.g. --shield-margin none), unlike one not given (None)
 
@@ -26,7 +31,7 @@ class UsageError(Exception):
     """A bad option or run folder: reported as one line, exit code 2."""
 
 
-def resume_clashes(given: dict, saved) -> list[str]:
+def resume_clashes(given: dict, saved: RunConfig) -> list[str]:
     """The options given with --resume (``cli.train.given_options``) whose value differs from the
     saved run's ``RunConfig``, as 'option value (saved x)'."""
     norm = lambda x: json.loads(json.dumps(x))
@@ -46,7 +51,7 @@ def _config_hash(text: bytes) -> str:
     return hashlib.sha256(text).hexdigest()
 
 
-def saved_config(args, given: dict):
+def saved_config(args: argparse.Namespace, given: dict) -> RunConfig:
     """The ``RunConfig`` of the run in --out, for --resume: parsed, re-validated as strictly as the
     command line, unedited since the run wrote it, and agreeing with the options ``given``."""
     from semuav_jax.agents.runs import read_config
@@ -81,7 +86,7 @@ def saved_config(args, given: dict):
     return saved
 
 
-def prepare_folder(args, cfg) -> RunFolder:
+def prepare_folder(args: argparse.Namespace, cfg: RunConfig) -> RunFolder:
     """Claim the run folder (locked for this process) and, for a new run, write config.json. A
     folder of ours is refused without --resume / --overwrite unless it holds no checkpoint or model
     yet (a run stopped before its first checkpoint starts again)."""

@@ -9,16 +9,23 @@ import io
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from semuav_jax import checkpoint, distributed
 from semuav_jax.agents.runs import CKPT_FILE, CURVE_FILE, EVAL_FILE, EVAL_MD, METRICS_FILE, MODEL_FILE
 from semuav_jax.cli.train_folder import INT_COLUMNS, UsageError, read_metrics
 
+if TYPE_CHECKING:
+    from jax.typing import ArrayLike
+
+    from semuav_jax.agents.run_config import RunConfig
+    from semuav_jax.runfolder import RunFolder
+
 METRIC_COLUMNS = ("seed", "chunk", "env_steps", "epsilon", "episodes", "loss", "mean_psnr", "return", "arrived",
                   "coverage", "shield_share")  # fmt: skip
 
 
-def plot_curves(rows, path: Path, reference: dict | None = None) -> None:
+def plot_curves(rows: list[dict], path: Path, reference: dict | None = None) -> None:
     import matplotlib.pyplot as plt
 
     from semuav_jax.io import save_figure
@@ -39,19 +46,19 @@ def plot_curves(rows, path: Path, reference: dict | None = None) -> None:
     save_figure(fig, path, dpi=110)
 
 
-def segment_lengths(num_chunks: int, segments: int, done: int):
+def segment_lengths(num_chunks: int, segments: int, done: int) -> list[int]:
     """Chunks per remaining segment: equal lengths (one compilation) plus at most one remainder."""
     seg = -(-num_chunks // segments)
     left = num_chunks - done
     return [seg] * (left // seg) + ([left % seg] if left % seg else [])
 
 
-def _error(text) -> int:
+def _error(text: str) -> int:
     print(f"{Path(sys.argv[0]).name}: error: {text}", file=sys.stderr)
     return 2
 
 
-def _csv(rows) -> bytes:
+def _csv(rows: list[dict]) -> bytes:
     text = io.StringIO()
     w = csv.DictWriter(text, METRIC_COLUMNS)
     w.writeheader()
@@ -59,7 +66,7 @@ def _csv(rows) -> bytes:
     return text.getvalue().encode()
 
 
-def train_run(cfg, folder, resume: bool, max_segments: int | None) -> int:
+def train_run(cfg: RunConfig, folder: RunFolder, resume: bool, max_segments: int | None) -> int:
     """Train the run ``cfg`` (a ``RunConfig``) into ``folder`` (claimed), from its checkpoint on
     ``resume``, for at most ``max_segments`` segments; then evaluate it (``cfg.eval_episodes``)."""
     import jax
@@ -71,7 +78,7 @@ def train_run(cfg, folder, resume: bool, max_segments: int | None) -> int:
     out, config = folder.path, cfg.agent
     bar = None
 
-    def progress(chunk):  # from inside the compiled segment, once per seed and chunk
+    def progress(chunk: ArrayLike) -> None:  # from inside the compiled segment, once per seed and chunk
         if bar is not None and int(chunk) > bar.n:
             bar.update(int(chunk) - bar.n)
 

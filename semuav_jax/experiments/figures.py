@@ -3,6 +3,9 @@
 
 from __future__ import annotations
 
+import os
+from typing import TYPE_CHECKING
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -13,6 +16,9 @@ from matplotlib.collections import LineCollection  # noqa: E402
 from semuav_jax.control import range_radius  # noqa: E402
 from semuav_jax.io import save_figure  # noqa: E402
 from semuav_jax.stats import wilson_interval  # noqa: E402
+
+if TYPE_CHECKING:
+    from semuav_jax.params import EnvParams
 
 STYLE = {
     "agent": dict(color="C3", marker="o", label="DDQN (ours, mean of seeds)"),
@@ -28,7 +34,7 @@ STYLE = {
 BANDS = ("agent", "greedy-dwell", "tsp-dwell", "planner", "exact planner")  # panel (b): policies with their own speed
 
 
-def fig2a(r: dict, path):
+def fig2a(r: dict, path: str | os.PathLike) -> None:
     """Mean PSNR vs B (left) and devices covered (right): the agent with its t interval across seeds, the
     baselines at 8.9 m/s and at v_b*, the planner (95 % t intervals over layouts)."""
     rows = r["panel_a"]
@@ -64,7 +70,7 @@ def fig2a(r: dict, path):
     save_figure(fig, path)
 
 
-def fig2b(r: dict, path):
+def fig2b(r: dict, path: str | os.PathLike) -> None:
     """At B = 25 kHz: greedy and TSP vs their speed (PSNR left, arrival right); the agent, the dwell
     rules and the planners, which set their own speeds, as bands."""
     v = np.array(r["velocities"])
@@ -104,7 +110,7 @@ def fig2b(r: dict, path):
     save_figure(fig, path)
 
 
-def fig2c(paths: dict, params, path):
+def fig2c(paths: dict, params: EnvParams, path: str | os.PathLike) -> None:
     """Trajectories on the paper layout, one panel per policy: the path coloured by speed, each device's
     seconds in range written beside it and drawn as a ring whose size grows with them."""
     names = [n for n in ("agent", "tsp v_b*", "greedy-dwell", "tsp-dwell", "planner", "exact planner") if n in paths]

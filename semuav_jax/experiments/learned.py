@@ -10,6 +10,9 @@ its t interval. No seed is selected: every one is reported.
 from __future__ import annotations
 
 import dataclasses
+import os
+from collections.abc import Callable, Iterable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -23,6 +26,10 @@ from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams
 from semuav_jax.stats import mean_ci, pm, wilson_interval
 
+if TYPE_CHECKING:
+    from semuav_jax.agents.network import QNetwork
+    from semuav_jax.runfolder import RunFolder
+
 REFERENCES = (
     "greedy v_b*",
     "tsp v_b*",
@@ -32,21 +39,21 @@ REFERENCES = (
 MARGINS = (*REFERENCES, "planner", "exact planner")  # every reference the agent is compared with, paired
 
 
-def _header(names) -> str:
+def _header(names: Iterable[str]) -> str:
     return " | ".join(f"− {n.replace('tsp', 'TSP')}" for n in names)
 
 
 def compare(
-    network,
-    nets,
+    network: QNetwork,
+    nets: Any,
     config: DDQNConfig,
     params: EnvParams,
-    bandwidths=BANDWIDTHS,
+    bandwidths: Sequence[float] = BANDWIDTHS,
     episodes: int = 1000,
     validation_episodes: int = 500,
     workers: int = 2,
     ablate_shield: bool = True,
-    log=print,
+    log: Callable[[str], None] = print,
 ) -> dict:
     """Every number of the table of docs/ddqn.md (JSON-ready) for the seeds ``nets`` of one agent."""
     tuned = tune(params, bandwidths, validation_episodes, workers=workers)
@@ -155,11 +162,11 @@ def markdown(r: dict) -> str:
 
 
 def evaluate_run(
-    folder,
+    folder: str | os.PathLike,
     episodes: int | None = None,
     validation_episodes: int | None = None,
     workers: int | None = None,
-    log=print,
+    log: Callable[[str], None] = print,
     extra: dict | None = None,
 ) -> dict:
     """:func:`compare` for the seeds of a finished ``train.py`` run folder in its own env (its
@@ -177,7 +184,14 @@ def evaluate_run(
         run_folder.release()
 
 
-def _evaluate_run(run_folder, episodes, validation_episodes, workers, log, extra) -> dict:
+def _evaluate_run(
+    run_folder: RunFolder,
+    episodes: int | None,
+    validation_episodes: int | None,
+    workers: int | None,
+    log: Callable[[str], None],
+    extra: dict | None,
+) -> dict:
     import json
 
     from semuav_jax.agents.runs import EVAL_FILE, EVAL_MD, load_run
@@ -198,7 +212,9 @@ def _evaluate_run(run_folder, episodes, validation_episodes, workers, log, extra
     return r
 
 
-def validation_table(folders, episodes: int = 500, bandwidths=(5e3, 25e3, 40e3)) -> str:
+def validation_table(
+    folders: Iterable[str | os.PathLike], episodes: int = 500, bandwidths: Sequence[float] = (5e3, 25e3, 40e3)
+) -> str:
     """Markdown: mean PSNR of every seed of each run folder on ``episodes`` layouts of
     ``keys.VALIDATION_SEED`` at each B, the numbers settings are chosen on (test layouts untouched)."""
     from semuav_jax.agents.runs import load_run

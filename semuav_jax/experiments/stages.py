@@ -7,6 +7,8 @@ parse, is recomputed (and said so), never reused."""
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import jax
 import numpy as np
@@ -14,6 +16,9 @@ from flax import serialization
 
 from semuav_jax.distributed import is_main
 from semuav_jax.sharding import agree
+
+if TYPE_CHECKING:
+    from semuav_jax.runfolder import RunFolder
 
 FORMAT = "semuav-jax stage 1"
 
@@ -23,11 +28,18 @@ class Stages:
     this ``key`` (JSON-able) in ``folder`` (a :class:`semuav_jax.runfolder.RunFolder`; None: nothing
     saved), else computed and saved. ``log`` gets one line per step, ``note`` the others."""
 
-    def __init__(self, folder, key: dict, log=print, sub: str = "stages", note=None):
+    def __init__(
+        self,
+        folder: RunFolder | None,
+        key: dict,
+        log: Callable[[str], None] = print,
+        sub: str = "stages",
+        note: Callable[[str], None] | None = None,
+    ) -> None:
         self.folder, self.log, self.sub, self.note = folder, log, sub, note or log
         self.key = json.dumps(key, sort_keys=True, default=str)
 
-    def _saved(self, name: str, rel: str, load):
+    def _saved(self, name: str, rel: str, load: Callable[[Any], Any]) -> tuple[Any] | None:
         """The step saved at ``rel`` when it is ours, parses and has this key; else None (said why)."""
         if self.folder is None or rel not in self.folder.files or not (self.folder.path / rel).is_file():
             return None
@@ -42,7 +54,14 @@ class Stages:
         self.note(f"{name}: the saved {rel} {why}: recomputing it")
         return None
 
-    def __call__(self, name: str, compute, save=lambda x: x, load=lambda x: x, describe=lambda out: ""):
+    def __call__(
+        self,
+        name: str,
+        compute: Callable[[], Any],
+        save: Callable[[Any], Any] = lambda x: x,
+        load: Callable[[Any], Any] = lambda x: x,
+        describe: Callable[[Any], str] = lambda out: "",
+    ) -> Any:
         rel = f"{self.sub}/{name.split(' (')[0].replace(' ', '_')}.msgpack"
         saved = self._saved(name, rel, load)
         if agree(saved is not None):  # a step every process can read (a shared folder)
@@ -56,7 +75,7 @@ class Stages:
         return out
 
 
-def _packable(x):
+def _packable(x: Any) -> Any:
     """x with tuples as lists and NumPy scalars as Python numbers (what msgpack takes); a restored
     step compares equal in JSON."""
     if isinstance(x, dict):

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import os
 import pickle
+from collections.abc import Iterable, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -69,7 +71,7 @@ def _read_rgb(path: Path) -> np.ndarray:
     return im
 
 
-def _builtin_paths(skimage_names, sklearn_names) -> list[Path]:
+def _builtin_paths(skimage_names: Iterable[str], sklearn_names: Iterable[str]) -> list[Path]:
     paths = [_skimage_dir() / n for n in skimage_names] + [_sklearn_dir() / n for n in sklearn_names]
     missing = [str(p) for p in paths if not p.is_file()]
     if missing:
@@ -77,7 +79,7 @@ def _builtin_paths(skimage_names, sklearn_names) -> list[Path]:
     return paths
 
 
-def _pyramid(im: np.ndarray, scales=SCALES) -> list[np.ndarray]:
+def _pyramid(im: np.ndarray, scales: Sequence[int] = SCALES) -> list[np.ndarray]:
     """float32 [0, 1] versions of ``im`` downscaled by each factor (area averaging)."""
     x = im.astype(np.float32) / 255.0
     out = []
@@ -145,7 +147,7 @@ class _CifarUnpickler(pickle.Unpickler):
     """Unpickler that builds nothing but builtins and numpy arrays: ``pickle.load`` of a crafted
     file runs arbitrary code, through the globals it names."""
 
-    def find_class(self, module, name):
+    def find_class(self, module: str, name: str) -> Any:
         if (module, name) not in CIFAR_GLOBALS:
             raise _NotCifar(f"it references {module}.{name}")
         return CIFAR_GLOBALS[module, name]

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import hashlib
 import os
+from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -30,13 +32,13 @@ def default_model_path() -> Path:
     return default_curves_path().parent / DEFAULT_MODEL
 
 
-def model_blob(params, model: DeepJSCC) -> bytes:
+def model_blob(params: Any, model: DeepJSCC) -> bytes:
     """The model file's bytes: params (+ the module's fields) as flax msgpack."""
     arch = {"width": model.width, "mask_input": model.mask_input}
     return serialization.msgpack_serialize({**arch, "params": jax.device_get(params)})
 
 
-def load_model(path: str | os.PathLike | None = None):
+def load_model(path: str | os.PathLike | None = None) -> tuple[DeepJSCC, Any]:
     """(DeepJSCC module, params) from a model .msgpack (the shipped one when None)."""
     path = Path(path) if path is not None else default_model_path()
     if not path.is_file():
@@ -60,12 +62,12 @@ def psnr(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return 10.0 * np.log10(1.0 / np.maximum(mse, 1e-10))
 
 
-def decode_prefixes(model, params, x: np.ndarray, ks) -> np.ndarray:
+def decode_prefixes(model: DeepJSCC, params: Any, x: np.ndarray, ks: Iterable[int]) -> np.ndarray:
     """Decoded images (len(ks), N, 32, 32, 3) of ``x`` from its first k symbols, for each k in ks."""
     s = model.apply({"params": params}, jnp.asarray(x), method=DeepJSCC.encode)
 
     @jax.jit
-    def dec(k):
+    def dec(k: int) -> jax.Array:
         kk = jnp.full((s.shape[0],), k)
         rx = jnp.where(prefix_mask(kk), quantize_iq(truncate(s, kk)), 0.0)
         return model.apply({"params": params}, rx, method=DeepJSCC.decode)
@@ -73,13 +75,15 @@ def decode_prefixes(model, params, x: np.ndarray, ks) -> np.ndarray:
     return np.stack([np.asarray(dec(int(k))) for k in ks])
 
 
-def compute_curves(model, params, x: np.ndarray) -> np.ndarray:
+def compute_curves(model: DeepJSCC, params: Any, x: np.ndarray) -> np.ndarray:
     """C[i, k] in dB for k = 0..M."""
     ys = decode_prefixes(model, params, x, range(M + 1))
     return np.stack([psnr(x, y) for y in ys], axis=1).astype(np.float32)
 
 
-def write_curves(ckpt: str | os.PathLike, out: str | os.PathLike, model_out: str | os.PathLike | None = None):
+def write_curves(
+    ckpt: str | os.PathLike, out: str | os.PathLike, model_out: str | os.PathLike | None = None
+) -> tuple[Path, np.ndarray, dict]:
     """Evaluate the checkpoint in ``ckpt`` and write the curves .npz ``out`` and, when ``model_out``
     is given, the model .msgpack: both paths checked, the weights and the curves validated, before
     anything is written; no other file is touched."""
@@ -144,7 +148,12 @@ def write_curves(ckpt: str | os.PathLike, out: str | os.PathLike, model_out: str
     return out, C, meta
 
 
-def make_figure(out: str | os.PathLike, model: str | os.PathLike | None = None, curves=None, n_images: int = 4) -> Path:
+def make_figure(
+    out: str | os.PathLike,
+    model: str | os.PathLike | None = None,
+    curves: str | os.PathLike | None = None,
+    n_images: int = 4,
+) -> Path:
     """Decoded test images at 0/10/25/50/100 % of the symbols and the mean PSNR-vs-k curve."""
     import matplotlib
 

@@ -5,7 +5,8 @@ the monotone hinge), the optimizer."""
 from __future__ import annotations
 
 import functools
-from typing import TYPE_CHECKING
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import jax
 import jax.numpy as jnp
@@ -51,26 +52,26 @@ def transmit(cfg: TrainConfig, s: jax.Array, k: jax.Array, key: jax.Array, copie
     return jnp.where(mask, rx, 0.0)
 
 
-def _log_mse(y, x):
+def _log_mse(y: jax.Array, x: jax.Array) -> jax.Array:
     return 10.0 * jnp.log10(jnp.mean((y - x) ** 2, axis=(1, 2, 3)) + MSE_FLOOR)
 
 
 @functools.lru_cache(maxsize=4)
-def make_train_step(cfg: TrainConfig):
+def make_train_step(cfg: TrainConfig) -> Callable[[Any, Any, jax.Array, jax.Array], tuple[Any, Any, jax.Array]]:
     """Jitted (params, opt_state, x, key) -> (params, opt_state, loss); cached per config."""
     model = model_of(cfg)
     opt = make_optimizer(cfg)
 
-    def loss_fn(params, x, k, key):
+    def loss_fn(params: Any, x: jax.Array, k: jax.Array, key: jax.Array) -> jax.Array:
         s = model.apply({"params": params}, x, method=DeepJSCC.encode)
         y = model.apply({"params": params}, transmit(cfg, s, k, key), method=DeepJSCC.decode)
         return jnp.mean(_log_mse(y, x))
 
-    def plain_draw(key, b):
+    def plain_draw(key: jax.Array, b: int) -> tuple[jax.Array]:
         k_max = jnp.where(jax.random.bernoulli(key, 0.75, (b,)), M, M // 2)
         return (jax.random.randint(jax.random.fold_in(key, 1), (b,), 0, k_max + 1),)
 
-    def mono_loss_fn(params, x, k1, k2, key):
+    def mono_loss_fn(params: Any, x: jax.Array, k1: jax.Array, k2: jax.Array, key: jax.Array) -> jax.Array:
         s = model.apply({"params": params}, x, method=DeepJSCC.encode)
         k = jnp.concatenate([k1, k2])
         rx = transmit(cfg, s, k, key, copies=2)
@@ -79,7 +80,7 @@ def make_train_step(cfg: TrainConfig):
         hinge = jax.nn.relu(l2 - l1 + cfg.monotone_margin)
         return 0.5 * jnp.mean(l1 + l2) + cfg.monotone_weight * jnp.mean(hinge)
 
-    def mono_draw(key, b):
+    def mono_draw(key: jax.Array, b: int) -> tuple[jax.Array, jax.Array]:
         c = jax.random.split(key, 5)
         k2 = jnp.where(jax.random.bernoulli(c[0], 0.25, (b,)), M, jax.random.randint(c[1], (b,), 1, M + 1))
         near = jnp.maximum(k2 - jax.random.randint(c[2], (b,), 1, cfg.monotone_gap + 1), 0)
@@ -90,7 +91,9 @@ def make_train_step(cfg: TrainConfig):
     loss_of, draw = (mono_loss_fn, mono_draw) if mono else (loss_fn, plain_draw)
 
     @jax.jit
-    def step(params, opt_state, x, key):
+    def step(
+        params: Any, opt_state: optax.OptState, x: jax.Array, key: jax.Array
+    ) -> tuple[Any, optax.OptState, jax.Array]:
         kk, kn = jax.random.split(key)
         loss, grads = jax.value_and_grad(loss_of)(params, x, *draw(kk, x.shape[0]), kn)
         updates, opt_state = opt.update(grads, opt_state, params)

@@ -56,7 +56,7 @@ def truncate(s: jax.Array, k: jax.Array) -> jax.Array:
     return power_normalize(s, prefix_mask(k, s.shape[-1]))
 
 
-def complex_noise(key: jax.Array, shape, snr_db: float) -> jax.Array:
+def complex_noise(key: jax.Array, shape: tuple[int, ...], snr_db: float) -> jax.Array:
     """Circular complex Gaussian noise of variance 10^(-snr/10) (unit signal power)."""
     sigma = jnp.sqrt(10.0 ** (-snr_db / 10.0) / 2.0)
     kr, ki = jax.random.split(key)
@@ -72,7 +72,7 @@ def quantize_iq(s: jax.Array, bits: int = BITS_PER_SYMBOL // 2, clip: float = IQ
     """Uniform ``bits``-bit quantization of I and Q each over [-clip, clip] (2^bits levels)."""
     step = 2.0 * clip / (2**bits - 1)
 
-    def q(x):
+    def q(x: jax.Array) -> jax.Array:
         return jnp.round((jnp.clip(x, -clip, clip) + clip) / step) * step - clip
 
     return q(s.real) + 1j * q(s.imag)
@@ -84,7 +84,7 @@ class Encoder(nn.Module):
     width: int = 32
 
     @nn.compact
-    def __call__(self, x):
+    def __call__(self, x: jax.Array) -> jax.Array:
         w = self.width
         x = nn.gelu(nn.Conv(w // 2, (3, 3))(x * 2.0 - 1.0))
         x = nn.gelu(nn.Conv(w, (3, 3), strides=2)(x))
@@ -108,7 +108,7 @@ class Decoder(nn.Module):
     width: int = 32
 
     @nn.compact
-    def __call__(self, z, mask=None):
+    def __call__(self, z: jax.Array, mask: jax.Array | None = None) -> jax.Array:
         w = self.width
         if mask is not None:
             z = jnp.concatenate([z, mask], axis=-1)
@@ -126,22 +126,22 @@ class DeepJSCC(nn.Module):
     width: int = 32
     mask_input: bool = False
 
-    def setup(self):
+    def setup(self) -> None:
         self.encoder = Encoder(self.width)
         self.decoder = Decoder(self.width)
 
-    def encode(self, x):
+    def encode(self, x: jax.Array) -> jax.Array:
         """Images (B, 32, 32, 3) in [0, 1] -> (B, M) complex symbols of unit average power."""
         return power_normalize(latent_to_symbols(self.encoder(x)))
 
-    def decode(self, s):
+    def decode(self, s: jax.Array) -> jax.Array:
         """Received (B, M) complex symbols (tail zero-padded) -> images in [0, 1]. The received
         entries are the non-zero ones: neither channel yields an exact zero (8-bit I/Q levels
         are odd multiples of half a step, AWGN is continuous)."""
         mask = received_plane(s) if self.mask_input else None
         return self.decoder(symbols_to_latent(s), mask)
 
-    def __call__(self, x, k, key, snr_db: float):
+    def __call__(self, x: jax.Array, k: jax.Array, key: jax.Array, snr_db: float) -> jax.Array:
         """Encode, keep the first k symbols (renormalized), AWGN, zero-pad, decode."""
         mask = prefix_mask(k)
         return self.decode(awgn(key, truncate(self.encode(x), k), snr_db, mask))

@@ -32,6 +32,7 @@ import json
 import os
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import jax
 import jax.numpy as jnp
@@ -45,17 +46,20 @@ from semuav_jax.jscc.data import sample_batch
 from semuav_jax.jscc.loss import make_optimizer, make_train_step, model_of, transmit  # noqa: F401 - transmit: re-exported
 from semuav_jax.jscc.model import IMAGE_SHAPE, M
 
+if TYPE_CHECKING:
+    from semuav_jax.runfolder import RunFolder
+
 CKPT_FILE = "checkpoint.msgpack"
 CONFIG_FILE = "config.json"
 
 
-def init_params(cfg: TrainConfig):
+def init_params(cfg: TrainConfig) -> Any:
     model = model_of(cfg)
     x = jnp.zeros((1, *IMAGE_SHAPE), jnp.float32)
     return model.init(jax.random.PRNGKey(cfg.seed), x, jnp.array([M]), jax.random.PRNGKey(0), cfg.snr_db)["params"]
 
 
-def start_params(cfg: TrainConfig):
+def start_params(cfg: TrainConfig) -> Any:
     """Parameters a fresh run starts from: random, or those of the run in ``cfg.init_from``."""
     if cfg.init_from is None:
         return init_params(cfg)
@@ -73,7 +77,9 @@ def _config_text(cfg: TrainConfig) -> str:
     return json.dumps({"config": dataclasses.asdict(cfg)}, indent=1)
 
 
-def save_checkpoint(out: Path, cfg: TrainConfig, params, opt_state, step: int, history: list) -> None:
+def save_checkpoint(
+    out: Path, cfg: TrainConfig, params: Any, opt_state: optax.OptState, step: int, history: list
+) -> None:
     """Write the run's state (parameters, optimizer, step and history) as one checkpoint file,
     atomically; config.json, which holds only the config, is written before it when it does not hold
     this config yet. A kill at any moment leaves either the previous checkpoint or this one, each
@@ -94,7 +100,7 @@ def save_checkpoint(out: Path, cfg: TrainConfig, params, opt_state, step: int, h
     checkpoint.save(out / CKPT_FILE, state)
 
 
-def check_out(out: str | os.PathLike, resume: bool = False, overwrite: bool = False):
+def check_out(out: str | os.PathLike, resume: bool = False, overwrite: bool = False) -> RunFolder:
     """The directory ``out`` claimed for checkpoints (``semuav_jax.runfolder``: ours or new, locked);
     ValueError unless it can be written and, unless ``resume`` or ``overwrite``, holds none yet."""
     from semuav_jax.runfolder import RunFolder
@@ -128,7 +134,9 @@ def load_config(ckpt_dir: str | os.PathLike) -> tuple[TrainConfig, dict]:
         raise ValueError(f"{p}: unreadable checkpoint config ({type(e).__name__}: {e})") from e
 
 
-def load_checkpoint(ckpt_dir: str | os.PathLike, cfg: TrainConfig, opt: optax.GradientTransformation):
+def load_checkpoint(
+    ckpt_dir: str | os.PathLike, cfg: TrainConfig, opt: optax.GradientTransformation
+) -> tuple[Any, optax.OptState, int, list]:
     """(params, opt_state, step, history) restored from ``ckpt_dir``; ValueError (one line) if the
     checkpoint is unreadable or its arrays are not those of ``cfg``. ``history`` is the list of
     (step, mean loss, elapsed seconds) of the checkpoint (of config.json for checkpoints written
@@ -153,7 +161,7 @@ def train(
     ckpt_every_s: float = 60.0,
     progress: bool = True,
     log_every: int = 100,
-):
+) -> tuple[Any, list]:
     """Train (or resume) up to ``cfg.steps`` steps or ``minutes`` wall-clock; returns (params, history).
 
     ``history`` holds (step, mean loss over the last ``log_every`` steps, elapsed seconds); the
@@ -173,7 +181,17 @@ def train(
             folder.release()
 
 
-def _train(cfg, photos, out, resume, minutes, overwrite, ckpt_every_s, progress, log_every):
+def _train(
+    cfg: TrainConfig,
+    photos: list[np.ndarray],
+    out: str | os.PathLike | None,
+    resume: bool,
+    minutes: float | None,
+    overwrite: bool,
+    ckpt_every_s: float,
+    progress: bool,
+    log_every: int,
+) -> tuple[Any, list]:
     opt = make_optimizer(cfg)
     history: list = []
     start, elapsed0 = 0, 0.0
