@@ -14,40 +14,41 @@ from typing import Any
 from semuav_jax.actions import ACTION_MODES
 
 
-def _f(default: Any, help: str) -> Any:
-    """A config field with its command-line help (``train.py`` derives its options from these)."""
-    return dataclasses.field(default=default, metadata={"help": help})
+def option(default: Any, help: str, **meta: Any) -> Any:
+    """A config field with its command-line help and argparse hints (``train.py`` derives its options
+    from the fields that have one)."""
+    return dataclasses.field(default=default, metadata={"help": help, **meta})
 
 
 @dataclasses.dataclass(frozen=True)
 class DDQNConfig:
     """Hyperparameters (static). ``total_steps`` counts environment steps summed over envs."""
 
-    num_envs: int = _f(64, "parallel environments per agent")
-    total_steps: int = _f(16_000_000, "environment steps per agent, summed over its envs")
-    steps_per_chunk: int = _f(250, "vmapped env steps per compiled chunk (target sync and metrics per chunk)")
-    updates_per_step: int = _f(1, "gradient updates after each vmapped env step")
-    batch_size: int = _f(256, "replay minibatch")
-    buffer_size: int = _f(50_000, "replay memory, transitions")
-    learning_starts: int = _f(10_000, "random transitions stored before learning")
-    lr: float = _f(2.5e-4, "Adam learning rate")
-    lr_end: float = _f(0.1, "learning rate at the end of training as a share of lr (cosine decay); 1: constant")
-    gamma: float = _f(0.99, "discount per slot")
-    eps_start: float = _f(1.0, "initial exploration rate")
-    eps_end: float = _f(0.02, "final exploration rate")
-    eps_decay_frac: float = _f(0.5, "share of training over which epsilon decays linearly")
-    target_period: int = _f(4, "chunks between target-network syncs")
-    n_step: int = _f(10, "steps summed in each return before bootstrapping")
-    reward_scale: float = _f(0.01, "multiplies every reward before learning")
-    max_grad_norm: float = _f(10.0, "global gradient-norm clip")
-    hidden: tuple = _f((128, 128, 64), "hidden layer widths of the Q-network MLP")
-    dueling: bool = _f(False, "dueling head: Q = V + A - mean(A) (Wang et al. 2016) instead of one linear layer")
-    sorted_devices: bool = _f(True, "table actions: sort device blocks nearest first and add tanh offsets")
-    shield_margin: float | None = _f(2.0, "seconds of slack of the BS's return-home shield; none: no shield")
-    actions: str = _f(
+    num_envs: int = option(64, "parallel environments per agent")
+    total_steps: int = option(16_000_000, "environment steps per agent, summed over its envs")
+    steps_per_chunk: int = option(250, "vmapped env steps per compiled chunk (target sync and metrics per chunk)")
+    updates_per_step: int = option(1, "gradient updates after each vmapped env step")
+    batch_size: int = option(256, "replay minibatch")
+    buffer_size: int = option(50_000, "replay memory, transitions")
+    learning_starts: int = option(10_000, "random transitions stored before learning")
+    lr: float = option(2.5e-4, "Adam learning rate")
+    lr_end: float = option(0.1, "learning rate at the end of training as a share of lr (cosine decay); 1: constant")
+    gamma: float = option(0.99, "discount per slot")
+    eps_start: float = option(1.0, "initial exploration rate")
+    eps_end: float = option(0.02, "final exploration rate")
+    eps_decay_frac: float = option(0.5, "share of training over which epsilon decays linearly")
+    target_period: int = option(4, "chunks between target-network syncs")
+    n_step: int = option(10, "steps summed in each return before bootstrapping")
+    reward_scale: float = option(0.01, "multiplies every reward before learning")
+    max_grad_norm: float = option(10.0, "global gradient-norm clip")
+    hidden: tuple = option((128, 128, 64), "hidden layer widths of the Q-network MLP")
+    dueling: bool = option(False, "dueling head: Q = V + A - mean(A) (Wang et al. 2016) instead of one linear layer")
+    sorted_devices: bool = option(True, "table actions: sort device blocks nearest first and add tanh offsets")
+    shield_margin: float | None = option(2.0, "seconds of slack of the BS's return-home shield; none: no shield")
+    actions: str = option(
         "waypoint", "waypoint (eq. 6.2: device, speed or hover, home) or table (the paper's 9 accelerations)"
     )
-    bandwidth_range: tuple | None = _f(
+    bandwidth_range: tuple | None = option(
         (4e3, 45e3),
         "(lo, hi) Hz: the envs train at bandwidths evenly spaced in the range "
         "(one agent for every B); none: the scenario's B",

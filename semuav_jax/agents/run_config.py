@@ -15,7 +15,7 @@ import json
 import math
 from typing import TYPE_CHECKING, Any
 
-from semuav_jax.agents.config import DDQNConfig
+from semuav_jax.agents.config import DDQNConfig, option
 from semuav_jax.agents.scenarios import SCENARIOS, scenario_params
 from semuav_jax.params import EnvParams
 
@@ -44,24 +44,20 @@ PRESETS = {
 NOT_ENV = ("C", "device_pos", "device_img", "layout")
 
 
-def _f(default: Any, help: str, **meta: Any) -> Any:
-    return dataclasses.field(default=default, metadata={"help": help, **meta})
-
-
 @dataclasses.dataclass(frozen=True)
 class RunConfig:
     """What a training run is; :meth:`to_dict` is config.json. Run options carry their CLI help."""
 
     agent: DDQNConfig = dataclasses.field(default_factory=DDQNConfig)
     env: dict = dataclasses.field(default_factory=lambda: dict(PRESETS["default"]["env"]))
-    scenario: str = _f("random", "fixed: the paper layout; random: a new layout per episode", choices=SCENARIOS)
-    curves: str | None = _f(None, "PSNR curves .npz, or 'synthetic' (none: the shipped DeepJSCC curves)", type=str)
-    seed: int = _f(0, "base random seed")
-    seeds: int = _f(3, "independent agents trained in one program")
-    segments: int = _f(50, "host-level segments (progress + checkpoint each)")
-    eval_episodes: int = _f(1000, "test layouts of the comparison with the references after training (0: none)")
-    validation_episodes: int = _f(500, "validation layouts that tune the references' knobs")
-    workers: int = _f(2, "processes for OR-Tools and the planner in the evaluation")
+    scenario: str = option("random", "fixed: the paper layout; random: a new layout per episode", choices=SCENARIOS)
+    curves: str | None = option(None, "PSNR curves .npz, or 'synthetic' (none: the shipped DeepJSCC curves)", type=str)
+    seed: int = option(0, "base random seed")
+    seeds: int = option(3, "independent agents trained in one program")
+    segments: int = option(50, "host-level segments (progress + checkpoint each)")
+    eval_episodes: int = option(1000, "test layouts of the comparison with the references after training (0: none)")
+    validation_episodes: int = option(500, "validation layouts that tune the references' knobs")
+    workers: int = option(2, "processes for OR-Tools and the planner in the evaluation")
     preset: str = "default"
     command: str = ""
 
