@@ -9,21 +9,26 @@ TSP ranks are solved outside jit (``tsp_ranks``, ``baselines.tsp``), each proces
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import partial
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
+from jax.typing import ArrayLike
 
 from baselines import tsp as tsp_solver
 from baselines.policies import DEFAULT_V_B, POLICIES, init_state
-from semuav_jax.env import reset_state
+from semuav_jax.engine import Policy
+from semuav_jax.env import EnvState, reset_state
 from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import rollout
 from semuav_jax.sharding import map_episodes, split_hosts
 
 
-def resolve(policy):
+def resolve(policy: str | Callable) -> Callable:
     """A policy function from a name of ``POLICIES`` or the function itself."""
     if callable(policy):
         return policy
@@ -33,14 +38,14 @@ def resolve(policy):
 
 
 @jax.jit
-def layouts(keys, params: EnvParams):
+def layouts(keys: jax.Array, params: EnvParams) -> tuple[jax.Array, jax.Array]:
     """Device positions (E, N, 2) and image indices (E, N) of the episodes run with ``keys`` (the same
     reset key split as ``episode``)."""
     s = jax.vmap(lambda k: reset_state(jax.random.split(k)[0], params))(keys)
     return s.dev_pos, s.dev_img
 
 
-def tsp_ranks(keys, params: EnvParams, workers: int = 2):
+def tsp_ranks(keys: jax.Array, params: EnvParams, workers: int = 2) -> np.ndarray:
     """Rank (E, N) of each device in the shortest open path q0 -> devices -> q_fin of each episode
     (``baselines.tsp``: exact, or OR-Tools above its ``EXACT_MAX_DEVICES``)."""
     pos = np.asarray(layouts(keys, params)[0])
@@ -53,7 +58,7 @@ def tsp_ranks(keys, params: EnvParams, workers: int = 2):
     return np.argsort(orders, axis=-1).astype(np.int32)
 
 
-def check_speeds(v_b):
+def check_speeds(v_b: npt.ArrayLike) -> jax.Array:
     """v_b as a float32 array, or a one-line ValueError naming a speed that is not finite and > 0."""
     v = np.atleast_1d(np.asarray(v_b, np.float64))
     bad = v[~(np.isfinite(v) & (v > 0))]
@@ -62,7 +67,14 @@ def check_speeds(v_b):
     return jnp.asarray(v, jnp.float32)
 
 
-def run(policy, keys, params: EnvParams, policy_state, state_axes=0, init_state=None):
+def run(
+    policy: Policy | Callable,
+    keys: jax.Array,
+    params: EnvParams,
+    policy_state: Any,
+    state_axes: int | None = 0,
+    init_state: EnvState | None = None,
+) -> dict[str, jax.Array]:
     """Metrics (dict of (E,) arrays, MODEL.md section 8) of ``policy`` over the episodes ``keys``.
 
     ``policy_state`` has a leading episode axis, or none with ``state_axes=None`` (e.g. shared
@@ -72,13 +84,17 @@ def run(policy, keys, params: EnvParams, policy_state, state_axes=0, init_state=
     return rollout(policy, keys, params, policy_state, init_state=init_state, state_axes=state_axes)[0]
 
 
-def baseline_metrics(policy, keys, params: EnvParams, v_b, rank):
+def baseline_metrics(
+    policy: str | Callable, keys: jax.Array, params: EnvParams, v_b: ArrayLike, rank: jax.Array
+) -> dict[str, jax.Array]:
     """Pure metrics of a baseline at speed ``v_b`` (traced); vmap it over ``v_b`` or ``params.B``."""
     states = jax.vmap(init_state, in_axes=(None, 0))(v_b, rank)
     return run(resolve(policy), keys, params, states)
 
 
-def _ranks(policy, keys, params, rank, **tsp_kwargs):
+def _ranks(
+    policy: str | Callable, keys: jax.Array, params: EnvParams, rank: ArrayLike | None, **tsp_kwargs: int
+) -> jax.Array:
     if rank is not None:
         return jnp.asarray(rank, jnp.int32)
     if policy == "tsp" or policy is POLICIES["tsp"]:
@@ -86,7 +102,14 @@ def _ranks(policy, keys, params, rank, **tsp_kwargs):
     return jnp.broadcast_to(jnp.arange(params.N, dtype=jnp.int32), (len(keys), params.N))
 
 
-def evaluate(policy, keys, params: EnvParams, v_b=DEFAULT_V_B, rank=None, **tsp_kwargs) -> dict:
+def evaluate(
+    policy: str | Callable,
+    keys: jax.Array,
+    params: EnvParams,
+    v_b: npt.ArrayLike = DEFAULT_V_B,
+    rank: ArrayLike | None = None,
+    **tsp_kwargs: int,
+) -> dict[str, np.ndarray]:
     """Metrics (dict of (E,) NumPy arrays) of a baseline over the episodes ``keys``.
 
     ``policy`` is a name of ``POLICIES`` or a baseline function; the TSP ranks are solved here
@@ -101,12 +124,22 @@ def evaluate(policy, keys, params: EnvParams, v_b=DEFAULT_V_B, rank=None, **tsp_
 
 
 @partial(jax.jit, static_argnames=("policy",))
-def _sweep(policy, keys, params, v_b, B, rank):
+def _sweep(
+    policy: Callable, keys: jax.Array, params: EnvParams, v_b: jax.Array, B: jax.Array, rank: jax.Array
+) -> dict[str, jax.Array]:
     at_b = lambda b: jax.vmap(lambda v: baseline_metrics(policy, keys, params.replace(B=b), v, rank))(v_b)
     return jax.vmap(at_b)(B)
 
 
-def sweep(policy, keys, params: EnvParams, v_b=(DEFAULT_V_B,), B=None, rank=None, **tsp_kwargs) -> dict:
+def sweep(
+    policy: str | Callable,
+    keys: jax.Array,
+    params: EnvParams,
+    v_b: npt.ArrayLike = (DEFAULT_V_B,),
+    B: npt.ArrayLike | None = None,
+    rank: ArrayLike | None = None,
+    **tsp_kwargs: int,
+) -> dict[str, np.ndarray]:
     """Metrics (dict of (len(B), len(v_b), E) arrays) over a bandwidth x speed grid, one compiled program.
 
     ``B`` defaults to ``params.B``; every point uses the same episodes (layouts, delays, seeds).

@@ -14,6 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 from ortools.constraint_solver import pywrapcp, routing_enums_pb2
 
 EXACT_MAX_DEVICES = 12  # Held-Karp: 2^N x N states per layout
@@ -23,7 +24,7 @@ PARALLEL_MIN_LAYOUTS = 64
 _EXACT_CELLS = 1 << 22  # layouts x subsets x devices x devices in one step of the exact solver
 
 
-def distance_matrix(dev_pos, q0, q_fin) -> np.ndarray:
+def distance_matrix(dev_pos: npt.ArrayLike, q0: npt.ArrayLike, q_fin: npt.ArrayLike) -> np.ndarray:
     """Euclidean distances between the nodes [q0, p_1..p_N, q_fin] (metres); batched over leading axes."""
     dev_pos = np.asarray(dev_pos, float)
     ends = lambda q: np.broadcast_to(np.asarray(q, float), (*dev_pos.shape[:-2], 1, 2))
@@ -31,7 +32,7 @@ def distance_matrix(dev_pos, q0, q_fin) -> np.ndarray:
     return np.linalg.norm(nodes[..., :, None, :] - nodes[..., None, :, :], axis=-1)
 
 
-def exact_orders(dist) -> np.ndarray:
+def exact_orders(dist: npt.ArrayLike) -> np.ndarray:
     """Shortest open paths (E, N) for distance matrices ``dist`` (E, N + 2, N + 2) over [q0, devices, q_fin].
 
     Held-Karp: best[S, j], the shortest path from q0 through the device set S ending at j, is the
@@ -77,7 +78,7 @@ def _search():
     return search
 
 
-def routing_order(dev_pos, q0, q_fin) -> np.ndarray:
+def routing_order(dev_pos: npt.ArrayLike, q0: npt.ArrayLike, q_fin: npt.ArrayLike) -> np.ndarray:
     """OR-Tools' open path (device indices (N,)) for one layout; deterministic (no time limit)."""
     n = len(dev_pos)
     cost = np.rint(distance_matrix(dev_pos, q0, q_fin) * SCALE).astype(np.int64)
@@ -95,16 +96,16 @@ def routing_order(dev_pos, q0, q_fin) -> np.ndarray:
     return np.asarray(order, np.int32)
 
 
-def solve_order(dev_pos, q0, q_fin) -> np.ndarray:
+def solve_order(dev_pos: npt.ArrayLike, q0: npt.ArrayLike, q_fin: npt.ArrayLike) -> np.ndarray:
     """Device indices (N,) in visiting order of the shortest open path from q0 to q_fin."""
     return solve_orders(np.asarray(dev_pos, float)[None], q0, q_fin, workers=1)[0]
 
 
-def _solve_batch(dev_pos, q0, q_fin) -> np.ndarray:
+def _solve_batch(dev_pos: np.ndarray, q0: np.ndarray, q_fin: np.ndarray) -> np.ndarray:
     return np.stack([routing_order(p, q0, q_fin) for p in dev_pos]).reshape(len(dev_pos), -1)
 
 
-def solve_orders(dev_pos, q0, q_fin, workers: int = 2) -> np.ndarray:
+def solve_orders(dev_pos: npt.ArrayLike, q0: npt.ArrayLike, q_fin: npt.ArrayLike, workers: int = 2) -> np.ndarray:
     """Visiting orders (E, N) for a batch of layouts ``dev_pos`` (E, N, 2).
 
     Exact in this process up to ``EXACT_MAX_DEVICES`` devices; above, batches of at least
@@ -125,6 +126,6 @@ def solve_orders(dev_pos, q0, q_fin, workers: int = 2) -> np.ndarray:
     ]
 
 
-def _worker_batch(dev_pos, q0, q_fin) -> dict:
+def _worker_batch(dev_pos: np.ndarray, q0: np.ndarray, q_fin: np.ndarray) -> dict[str, np.ndarray]:
     """Entry point of a worker process (``baselines/workers.py``)."""
     return {"orders": _solve_batch(dev_pos, q0, q_fin)}

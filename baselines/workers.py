@@ -20,20 +20,26 @@ import types
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 
 PIECE = 16  # items a worker solves between two progress reports
 SHARED = "__shared__"  # the npz entry naming the arrays that are not split into pieces
 
 
-def _npz_bytes(arrays: dict) -> bytes:
+def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
     buf = io.BytesIO()
     np.savez(buf, **arrays)
     return buf.getvalue()
 
 
 def map_chunks(
-    module_file, function: str, batched: dict, shared: dict | None = None, workers: int = 2, desc: str | None = None
-) -> dict:
+    module_file: str | Path,
+    function: str,
+    batched: dict[str, npt.ArrayLike],
+    shared: dict[str, npt.ArrayLike] | None = None,
+    workers: int = 2,
+    desc: str | None = None,
+) -> dict[str, np.ndarray]:
     """Run ``function(**chunk, **shared)`` on ``workers`` chunks of the leading axis of ``batched``.
 
     ``function`` returns a dict of arrays with the same leading axis; the chunks' results are
@@ -56,7 +62,8 @@ def map_chunks(
     bar = tqdm(total=n, desc=desc or function, unit="item", leave=False, dynamic_ncols=True)
     errors = [[] for _ in procs]
 
-    def follow(proc, err):  # progress lines are item counts; anything else is kept for the error message
+    def follow(proc: subprocess.Popen, err: list[str]) -> None:
+        # progress lines are item counts; anything else is kept for the error message
         for line in proc.stderr:
             text = line.decode(errors="replace").strip()
             if text.isdigit():
@@ -92,7 +99,7 @@ def map_chunks(
     return {k: np.concatenate([r[k] for r in results]) for k in results[0].files}
 
 
-def _load(module_file):
+def _load(module_file: str | Path) -> types.ModuleType:
     """The module of ``module_file`` imported as ``<package>.<name>``, the package a bare module
     whose ``__init__`` is not run."""
     path = Path(module_file).resolve()

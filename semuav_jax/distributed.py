@@ -11,12 +11,15 @@ its peers and without writing a result (only :func:`is_main` writes).
 
 from __future__ import annotations
 
+import argparse
 import atexit
 import os
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 DEFAULT_TIMEOUT_S = 60
 _ALIVE, _DONE = "semuav/alive/", "semuav/done/"
@@ -27,7 +30,7 @@ class DistributedError(Exception):
     """A bad distributed option, or a start the runtime refused: one line, exit code 2."""
 
 
-def add_options(parser) -> None:
+def add_options(parser: argparse.ArgumentParser) -> None:
     """The distributed options of every command (``parser``: an argparse parser)."""
     g = parser.add_argument_group("several processes or hosts (docs/scaling.md)")
     g.add_argument(
@@ -46,7 +49,7 @@ def add_options(parser) -> None:
     )
 
 
-def check_options(args) -> None:
+def check_options(args: argparse.Namespace) -> None:
     """DistributedError (one line) for inconsistent distributed options."""
     if args.dist_timeout < 2:
         raise DistributedError(f"--dist-timeout must be >= 2 s, got {args.dist_timeout}")
@@ -68,7 +71,7 @@ def check_options(args) -> None:
         )
 
 
-def initialize(args) -> None:
+def initialize(args: argparse.Namespace) -> None:
     """Start the distributed runtime if the options ask for it (no-op otherwise, or if started before)."""
     check_options(args)
     if args.coordinator is None or _state["active"]:
@@ -124,7 +127,7 @@ def abort(message: str, code: int = 1) -> None:
     os._exit(code)
 
 
-def guarded(run, argv):
+def guarded(run: Callable[[list[str] | None], int | None], argv: list[str] | None) -> int | None:
     """``run(argv)``; in a distributed run an exception (a lost peer's collective fails, or any error in
     this process) or a failed exit code ends the process at once (one line), since its peers cannot go
     on without it."""
@@ -207,7 +210,7 @@ def _watch(timeout: float) -> None:
 _FAILED = object()
 
 
-def _try(f, *args, **kw):
+def _try(f: Callable, *args: Any, **kw: Any):
     """f(...), or _FAILED if it raises (a key not set yet, or the coordinator gone: judged by time)."""
     try:
         return f(*args, **kw)

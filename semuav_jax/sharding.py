@@ -17,6 +17,9 @@ number of devices and processes.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -38,12 +41,12 @@ def padded_size(n: int) -> int:
     return -(-n // d) * d
 
 
-def _pad(x, size: int):
+def _pad(x: jax.Array, size: int):
     n = x.shape[0]
     return x if size == n else jnp.concatenate([x, jnp.repeat(x[-1:], size - n, axis=0)])
 
 
-def _put(x, sharding: NamedSharding):
+def _put(x: jax.Array, sharding: NamedSharding):
     """The whole array x on ``sharding``: device_put in one process, else this process's rows."""
     if jax.process_count() == 1:
         return jax.device_put(x, sharding)
@@ -55,7 +58,7 @@ def _put(x, sharding: NamedSharding):
     return jax.make_array_from_process_local_data(sharding, x[lo:hi], x.shape)
 
 
-def shard_episodes(tree):
+def shard_episodes(tree: Any) -> Any:
     """Pad the leading (episode) axis of every leaf to a multiple of the device count, repeating
     the last entry, and shard it over all devices. Slice results back with ``[:n]`` after
     :func:`gather`."""
@@ -72,7 +75,7 @@ def block_size(n: int) -> int:
     return min(BLOCK, n)
 
 
-def map_episodes(fn, tree, axis: int = -1):
+def map_episodes(fn: Callable, tree: Any, axis: int = -1) -> Any:
     """``fn`` (a jitted function of a pytree of per-episode inputs, leading axis n) over blocks of
     :func:`block_size` (n) episodes, the batch padded by repeating its last entry; returns fn's
     leaves (episode axis ``axis``) for the n episodes, whole NumPy arrays in every process.
@@ -98,14 +101,14 @@ def map_episodes(fn, tree, axis: int = -1):
     return jax.tree.map(lambda x: np.take(x, np.arange(n), axis=axis), mine)
 
 
-def gather(tree):
+def gather(tree: Any) -> Any:
     """Every leaf as a whole NumPy array in every process (an all-gather across processes)."""
     if jax.process_count() == 1:
         return jax.tree.map(np.asarray, tree)
     return multihost_utils.process_allgather(tree, tiled=True)
 
 
-def split_hosts(fn, n: int):
+def split_hosts(fn: Callable[[int, int], Any], n: int) -> Any:
     """``fn(lo, hi)`` (host-side work on episodes lo..hi-1: a pytree of arrays with that leading axis)
     in each process on its share of the n episodes, gathered in episode order in every process."""
     p, i = jax.process_count(), jax.process_index()

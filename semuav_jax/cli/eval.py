@@ -15,9 +15,14 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from semuav_jax import distributed
 from semuav_jax.cli import interruptible
+
+if TYPE_CHECKING:
+    from semuav_jax.curves import PSNRCurves
+    from semuav_jax.runfolder import RunFolder
 
 OUT_FILES = ("fig2.json", "fig2.md", "fig2a.png", "fig2b.png", "fig2c.png")  # what eval.py writes in --out
 
@@ -26,7 +31,7 @@ class UsageError(Exception):
     """A bad option or folder: one line on stderr, exit code 2."""
 
 
-def parse_args(argv=None):
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     from semuav_jax.experiments.fig2 import FULL, QUICK, check_bandwidths
 
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -85,7 +90,7 @@ def parse_args(argv=None):
     return a
 
 
-def claim_out(args):
+def claim_out(args: argparse.Namespace) -> RunFolder:
     """The --out folder claimed (``semuav_jax.runfolder``): ours or new, locked; its results removed
     with --overwrite (its saved steps stay: they are keyed), refused without."""
     from semuav_jax.runfolder import RunFolder
@@ -104,7 +109,7 @@ def claim_out(args):
     return folder
 
 
-def agent_folder(args, out: Path) -> Path:
+def agent_folder(args: argparse.Namespace, out: Path) -> Path:
     """The run folder of the agent: the shipped one, --agent, or OUT/agent trained (or resumed) here."""
     from semuav_jax.agents.runs import CKPT_FILE, finished, shipped_folder
     from semuav_jax.cli import train
@@ -129,13 +134,13 @@ def agent_folder(args, out: Path) -> Path:
     return folder
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     return interruptible(
         lambda a: distributed.guarded(_main, a), argv, "the same command continues at the step it stopped in"
     )
 
 
-def _main(argv=None) -> int:
+def _main(argv: list[str] | None = None) -> int:
     try:
         args = parse_args(argv)
         distributed.initialize(args)
@@ -171,7 +176,7 @@ def _main(argv=None) -> int:
         results.release()
 
 
-def _evaluate(args, results, curves, t0) -> int:
+def _evaluate(args: argparse.Namespace, results: RunFolder, curves: PSNRCurves | None, t0: float) -> int:
     import jax
     from tqdm import tqdm
 
@@ -199,7 +204,7 @@ def _evaluate(args, results, curves, t0) -> int:
     }
     with tqdm(total=fig2.stage_count(args.grid), desc="Fig. 2", unit="step", dynamic_ncols=True) as bar:
 
-        def log(msg):
+        def log(msg: str) -> None:
             bar.write(msg)
             bar.update(1)
 
@@ -231,7 +236,7 @@ def _evaluate(args, results, curves, t0) -> int:
     return 0
 
 
-def _animate(args) -> int:
+def _animate(args: argparse.Namespace) -> int:
     """--animate GIF: seed 0 of the agent, greedy and TSP at their v_b* (the agent folder's eval.json,
     else tuned here on --validation-layouts) and the planner, one episode each on the paper layout."""
     from baselines.report import tune

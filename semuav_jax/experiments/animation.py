@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import io
 import json
+import os
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import jax
 import numpy as np
@@ -20,6 +22,10 @@ from tqdm import tqdm
 from semuav_jax.io import atomic_write
 from semuav_jax.params import EnvParams
 from semuav_jax.render import draw, figure_rgb, view_limits
+
+if TYPE_CHECKING:
+    from semuav_jax.agents.config import DDQNConfig
+    from semuav_jax.agents.network import QNetwork
 
 REFERENCES = {
     "greedy v_b*": "greedy",
@@ -45,11 +51,11 @@ def episode_path(trace: dict, params: EnvParams) -> dict:
 def animate(
     traces: dict[str, dict],
     params: EnvParams,
-    path,
+    path: str | os.PathLike,
     fps: int = 8,
     stride: int = 2,
     cols: int = 2,
-    panel=(4.8, 3.1),
+    panel: tuple[float, float] = (4.8, 3.1),
     dpi: int = 80,
     hold_s: float = 2.0,
     progress: bool = False,
@@ -102,7 +108,7 @@ def _initial_psnr(params: EnvParams) -> float:
     return float(np.mean(C[np.asarray(params.device_img), 0]))
 
 
-def shipped_tuned_speeds(folder, B: float) -> dict | None:
+def shipped_tuned_speeds(folder: str | os.PathLike, B: float) -> dict | None:
     """v_b* of greedy and TSP, and the dwell rules' knobs where recorded, at bandwidth B from a run
     folder's eval.json (None if it has no tuning at B)."""
     f = Path(folder) / "eval.json"
@@ -118,7 +124,9 @@ def shipped_tuned_speeds(folder, B: float) -> dict | None:
     }
 
 
-def paper_layout_traces(network, nets, config, fixed: EnvParams, tuned: dict) -> dict[str, dict]:
+def paper_layout_traces(
+    network: QNetwork, nets: Any, config: DDQNConfig, fixed: EnvParams, tuned: dict
+) -> dict[str, dict]:
     """{panel title: trace} of seed 0 of the agent, greedy and TSP at their tuned speeds ``tuned``
     ({"greedy": v, "tsp": v}, plus "tsp-dwell": (v_c, k*, margin) when known), the open-loop and
     the exact planner, one episode each on ``fixed``'s layout (test key 0, as Fig. 2c)."""

@@ -5,15 +5,18 @@ otherwise, dwell and symbols per served device, devices covered, mission time.
 
 from __future__ import annotations
 
+from typing import Any
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from baselines import DEFAULT_V_B, init_state, receding, tsp_ranks
 from baselines.dwell import DWELL_POLICIES, init_dwell
-from baselines.planner import make_plans, planner
+from baselines.planner import PlanState, make_plans, planner
 from baselines.policies import POLICIES
 from semuav_jax.agents.config import DDQNConfig
+from semuav_jax.agents.network import QNetwork
 from semuav_jax.agents.policy import greedy_policy
 from semuav_jax.params import EnvParams
 from semuav_jax.rollout import rollout
@@ -50,16 +53,16 @@ def summarize(per_episode: dict) -> dict:
 
 
 def traced_runs(
-    network,
-    nets,
+    network: QNetwork,
+    nets: Any,
     config: DDQNConfig,
-    keys,
+    keys: jax.Array,
     params: EnvParams,
     tuned_speeds: dict,
     workers: int = 2,
-    rank=None,
-    plan=None,
-):
+    rank: np.ndarray | None = None,
+    plan: PlanState | None = None,
+) -> dict[str, tuple[dict[str, np.ndarray], dict[str, np.ndarray]]]:
     """Traced rollouts at ``params.B``: each agent seed, greedy and TSP at 8.9 m/s and at v_b*
     (``tuned_speeds``: name -> v_b*, and the dwell rules' name -> (v_c, k*, margin)), the dwell rules,
     the planner and the exact planner. ``rank`` (TSP ranks of ``keys``) and ``plan`` (the planner's

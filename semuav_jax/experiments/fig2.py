@@ -14,6 +14,9 @@ processes (docs/scaling.md).
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
+from typing import Any
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -23,6 +26,7 @@ from baselines.dwell import DWELL_POLICIES
 from baselines.planner import PlanState, make_plans
 from baselines.report import flights, tune
 from semuav_jax.agents.config import DDQNConfig
+from semuav_jax.agents.network import QNetwork
 from semuav_jax.agents.policy import greedy_policy
 from semuav_jax.experiments.behaviour import behaviour, path, summarize, traced_runs
 from semuav_jax.experiments.stages import Stages
@@ -49,7 +53,7 @@ def khz(b: float) -> str:
     return f"{b / 1e3:g}"
 
 
-def check_bandwidths(bandwidths) -> None:
+def check_bandwidths(bandwidths: Sequence[float]) -> None:
     """ValueError if two bandwidths of the grid (with the panels' PANEL_B) would share a name."""
     by_name: dict = {}
     for b in sorted(set(bandwidths) | {PANEL_B}):
@@ -68,17 +72,19 @@ def stage_count(grid: dict) -> int:
     return 6 + len(sweep_B) + len({min(sweep_B), PANEL_B})
 
 
-def _plan_dict(plan) -> dict:
+def _plan_dict(plan: PlanState) -> dict[str, np.ndarray]:
     return {f: np.asarray(getattr(plan, f)) for f in plan.__dataclass_fields__}
 
 
-def shared_plans(keys, params: EnvParams, workers: int = 2) -> PlanState:
+def shared_plans(keys: jax.Array, params: EnvParams, workers: int = 2) -> PlanState:
     """``make_plans`` of the episodes ``keys``, each process planning its share (one plan per episode)."""
     plan = split_hosts(lambda lo, hi: _plan_dict(make_plans(keys[lo:hi], params, workers=workers)), len(keys))
     return PlanState(**{k: jnp.asarray(v) for k, v in plan.items()})
 
 
-def agent_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams, bandwidths) -> dict:
+def agent_metrics(
+    network: QNetwork, nets: Any, config: DDQNConfig, keys: jax.Array, params: EnvParams, bandwidths: Sequence[float]
+) -> dict[str, np.ndarray]:
     """Per-episode metrics (seeds, len(bandwidths), E) of the greedy policy of every seed of ``nets``
     at every B: ``agents.evaluate.seed_metrics`` run in fixed-size blocks of episodes
     (``sharding.map_episodes``), so the bits do not depend on the devices and processes."""
@@ -90,14 +96,14 @@ def agent_metrics(network, nets, config: DDQNConfig, keys, params: EnvParams, ba
 
 
 def run(
-    network,
-    nets,
+    network: QNetwork,
+    nets: Any,
     config: DDQNConfig,
     params: EnvParams,
     fixed: EnvParams,
     grid: dict,
     workers: int = 2,
-    log=print,
+    log: Callable[[str], None] = print,
     stages: Stages | None = None,
 ) -> dict:
     """Every number and path of Fig. 2 (JSON-ready except the paths' arrays). ``stages`` saves each
@@ -170,7 +176,7 @@ def run(
         }
         at_b = params.replace(B=b)
 
-        def measure(at_b=at_b, tuned_at_b=tuned_at_b, ib=ib):
+        def measure(at_b: EnvParams = at_b, tuned_at_b: dict = tuned_at_b, ib: int = ib) -> dict:
             runs = traced_runs(network, nets, config, keys, at_b, tuned_at_b, workers, rank=rank, plan=plans[ib])
             return {name: summarize(behaviour(tr, at_b)) for name, (_, tr) in runs.items()}
 
@@ -187,7 +193,7 @@ def run(
     return out
 
 
-def panel_b(keys, params: EnvParams, velocities, rank) -> dict:
+def panel_b(keys: jax.Array, params: EnvParams, velocities: Sequence[float], rank: np.ndarray) -> dict:
     """Panel (b): greedy and TSP at B = PANEL_B vs their speed v_b: mean PSNR, arrival, coverage,
     symbols per covered device."""
     pb = params.replace(B=PANEL_B)

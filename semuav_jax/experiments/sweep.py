@@ -17,8 +17,10 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
+import os
 import tomllib
 from pathlib import Path
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -32,6 +34,7 @@ from semuav_jax.agents.runs import MODEL_FILE, load_run, shipped_folder
 from semuav_jax.agents.scenarios import scenario_params
 from semuav_jax.curves import load_curves
 from semuav_jax.io import atomic_write
+from semuav_jax.params import EnvParams
 from semuav_jax.provenance import file_hash
 from semuav_jax.rollout import rollout
 from semuav_jax.sharding import map_episodes
@@ -40,7 +43,7 @@ from semuav_jax.stats import mean_ci, wilson_interval
 KEYS = ("episodes", "seeds", "policies", "params", "scenario", "curves")
 
 
-def load_grid(path) -> dict:
+def load_grid(path: str | os.PathLike) -> dict:
     """The grid of a JSON or TOML file, checked (ValueError, one line)."""
     path = Path(path)
     try:
@@ -111,21 +114,21 @@ def items(grid: dict) -> list[dict]:
     return out
 
 
-def _canonical(x) -> str:
+def _canonical(x: Any) -> str:
     return json.dumps(x, sort_keys=True, separators=(",", ":"))
 
 
-def point_keys(point: dict, seed: int, episodes: int):
+def point_keys(point: dict, seed: int, episodes: int) -> jax.Array:
     """The episodes' keys of a grid point and seed (independent of the grid's order and split)."""
     point_id = int(hashlib.sha256(_canonical(point).encode()).hexdigest()[:8], 16) & 0x7FFFFFFF
     return jax.random.split(jax.random.fold_in(jax.random.PRNGKey(seed), point_id), episodes)
 
 
-def item_path(out, item: dict) -> Path:
+def item_path(out: str | os.PathLike, item: dict) -> Path:
     return Path(out) / "items" / f"{item['hash']}.json"
 
 
-def item_params(grid: dict, item: dict):
+def item_params(grid: dict, item: dict) -> EnvParams:
     try:
         return scenario_params(
             grid["scenario"], load_curves(grid["curves"]) if grid["curves"] else None, **item["point"]
@@ -163,12 +166,12 @@ def run_item(grid: dict, item: dict) -> dict:
 _baseline = jax.jit(baseline_metrics, static_argnums=0)
 
 
-def save_item(out, item: dict, metrics: dict) -> Path:
+def save_item(out: str | os.PathLike, item: dict, metrics: dict) -> Path:
     record = {k: v for k, v in item.items() if k != "hash"} | {"hash": item["hash"], "metrics": metrics}
     return atomic_write(item_path(out, item), json.dumps(record).encode())
 
 
-def merge(out, its: list[dict]) -> dict:
+def merge(out: str | os.PathLike, its: list[dict]) -> dict:
     """The table of the items (all done): per grid point and policy, the episodes of every seed
     pooled: mean PSNR with its t interval, arrival with its Wilson interval, coverage."""
     missing = [it for it in its if not item_path(out, it).is_file()]
