@@ -11,6 +11,7 @@ from semuav_jax.gym_vector import SemUAVVectorEnv
 
 K = 12  # short episodes: several autoresets within a few dozen steps
 E = 4  # sub-envs (one shape: the tests share compiled programs)
+N_SUBSET = gym_vector.SUBSET_MIN + 16  # enough sub-envs for resets of only the rows that need them
 
 
 def make_pair(curves, n, actions="table", mode=AutoresetMode.NEXT_STEP):
@@ -41,13 +42,19 @@ def assert_infos_equal(a: dict, b: dict):
 
 
 @pytest.mark.parametrize(
-    "actions, mode",
-    [("table", AutoresetMode.NEXT_STEP), ("waypoint", AutoresetMode.NEXT_STEP), ("table", AutoresetMode.SAME_STEP)],
+    "actions, mode, n",
+    [
+        ("table", AutoresetMode.NEXT_STEP, E),
+        ("waypoint", AutoresetMode.NEXT_STEP, E),
+        ("table", AutoresetMode.SAME_STEP, E),
+        ("table", AutoresetMode.NEXT_STEP, N_SUBSET),
+        ("table", AutoresetMode.SAME_STEP, N_SUBSET),
+    ],
 )
-def test_vector_episodes_equal_single_envs(curves, actions, mode):
+def test_vector_episodes_equal_single_envs(curves, actions, mode, n):
     """Same seeds, same actions: the vector env's episodes (through autoresets at different steps)
-    are those of Gymnasium's SyncVectorEnv over n SemUAVGymEnv, infos and masks included."""
-    n = E
+    are those of Gymnasium's SyncVectorEnv over n SemUAVGymEnv, infos and masks included. With
+    n > SUBSET_MIN, steps where at most ``size`` sub-envs end reset only those rows, the others all."""
     vec, sync = make_pair(curves, n, actions, mode)
     assert isinstance(vec.unwrapped, SemUAVVectorEnv) and vec.metadata["autoreset_mode"] == mode
     assert vec.action_space == sync.action_space and vec.observation_space == sync.observation_space
@@ -55,7 +62,7 @@ def test_vector_episodes_equal_single_envs(curves, actions, mode):
     obs_s, _ = sync.reset(seed=11)
     np.testing.assert_array_equal(obs_v, obs_s)
     rng = np.random.default_rng(0)
-    ends, partial = 0, 0
+    ends, partial, counts = 0, 0, set()
     for _ in range(3 * K):
         a = rng.integers(0, vec.single_action_space.n, n)
         obs_v, r_v, term_v, trunc_v, info_v = vec.step(a)
@@ -67,7 +74,11 @@ def test_vector_episodes_equal_single_envs(curves, actions, mode):
         assert_infos_equal(info_v, info_s)
         ends += int(term_v.sum())
         partial += int(0 < term_v.sum() < n)
+        counts.add(int(term_v.sum()))
     assert ends >= 2 * n and partial >= 2  # autoresets, some of them of only part of the sub-envs
+    size = vec.unwrapped._size
+    if size < n:  # both paths of _replace_rows: a few rows gathered, and all rows
+        assert any(0 < c <= size for c in counts) and any(c > size for c in counts), counts
     # a reset without seed continues each sub-env's key chain, as the single env does
     np.testing.assert_allclose(vec.reset()[0], sync.reset()[0], rtol=1e-5, atol=1e-5)
 
@@ -94,7 +105,7 @@ def test_next_step_autoreset(curves):
 def test_episode_metrics_on_the_final_step(curves):
     env = SemUAVVectorEnv(num_envs=E, curves=curves, K=K)
     env.reset(seed=2)
-    for t in range(K):
+    for _ in range(K):
         _, _, term, _, info = env.step(np.zeros(E, np.int64))
     assert term.all() and info["_mean_psnr"].all()
     np.testing.assert_allclose(info["mean_psnr"], np.asarray(env.state.phi).mean(-1), rtol=1e-6)
