@@ -66,6 +66,7 @@ def steps_per_s(step, n: int) -> float:
 
 
 def main():
+    load_at_start = os.getloadavg()
     c = curves()
     loop_name = "DummyVecEnv" if DummyVecEnv else "SyncVectorEnv"
     rows = []
@@ -99,6 +100,7 @@ def main():
         "loop": loop_name,
         "seconds": args.seconds,
         "repeats": args.repeats,
+        "load_average_at_start": load_at_start,
         "load_average_at_end": os.getloadavg(),
         "rows": rows,
     }
