@@ -89,7 +89,7 @@ def main():
             row["single_env_loop"] = steps_per_s(loop.step, n)
             row["speed_up"] = row["vector_env"] / row["single_env_loop"]
         rows.append(row)
-        fmt = lambda k, w: f"{row[k]:>{w},.0f}" if k in row else f"{'-':>{w}}"
+        fmt = lambda k, w, row=row: f"{row[k]:>{w},.0f}" if k in row else f"{'-':>{w}}"
         up = f"{row['speed_up']:>8,.0f}x" if "speed_up" in row else f"{'-':>9}"
         print(f"{n:>6} {fmt('vector_env', 16)} {fmt('sb3_vec_env', 19)} {fmt('single_env_loop', 18)} {up}")
     result = {

@@ -18,7 +18,7 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from semuav_jax.env import ENV_ID, make
-from semuav_jax.gym_adapter import _reset, _step, check_render_mode, gym_spaces
+from semuav_jax.gym_adapter import _reset, _step, check_render_mode, describe, gym_spaces
 from semuav_jax.metrics import episode_metrics
 
 SEED_LIMIT = 2**32  # jax.random.key takes 32-bit seeds
@@ -221,7 +221,12 @@ class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
         return obs, rew, term, np.zeros(self.num_envs, bool), infos
 
     def _check_actions(self, actions) -> np.ndarray:
-        a = np.asarray(actions)
+        try:
+            a = np.asarray(actions)
+        except ValueError:  # a ragged list
+            raise ValueError(
+                f"actions must be an integer array of shape ({self.num_envs},), got {describe(actions)}"
+            ) from None
         if a.shape != (self.num_envs,) or a.dtype.kind not in "iu":
             raise ValueError(f"actions must be an integer array of shape ({self.num_envs},), got {a.dtype} {a.shape}")
         n = self.single_action_space.n

@@ -225,3 +225,68 @@ def test_single_adapter_waypoint_actions_follow_the_gymnax_env(curves):
             g.step(bad)
     with pytest.raises(ValueError, match="actions must be one of .*got 'speed'"):
         SemUAVGymEnv(actions="speed", curves=curves, K=K)
+
+
+@pytest.mark.parametrize(
+    "action, shown",
+    [
+        (True, "True"),
+        (np.float32(2.0), "np.float32(2.0)"),
+        (np.zeros((3, 3), np.int64), "int64 array of shape (3, 3)"),
+        ("1", "'1'"),
+    ],
+)
+def test_single_adapter_bad_action_type_is_one_line(curves, action, shown):
+    """A bool, a float, an array or a string is not a Discrete action: one line naming it (no
+    multi-line array repr); a bool is refused although Python counts it as an int."""
+    from semuav_jax.gym_adapter import SemUAVGymEnv
+
+    g = SemUAVGymEnv(curves=curves, K=K)
+    g.reset(seed=0)
+    with pytest.raises(ValueError, match=r"action must be an integer in \[0, 8\], got ") as err:
+        g.step(action)
+    assert str(err.value).endswith(shown) and "\n" not in str(err.value)
+
+
+def test_ragged_vector_actions_are_one_line(curves):
+    env = SemUAVVectorEnv(num_envs=E, curves=curves, K=K)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"shape \(4,\), got \[0, \[1, 2\], 3, 4\]$") as err:
+        env.step([0, [1, 2], 3, 4])
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        ({"num_envs": 0}, "num_envs must be an integer >= 1, got 0"),
+        ({"actions": "speed"}, "actions must be one of .*got 'speed'"),
+        ({"render_mode": "human"}, "render_mode must be None or one of .*got 'human'"),
+    ],
+)
+def test_sb3_vec_env_bad_arguments(curves, kw, match):
+    pytest.importorskip("stable_baselines3")
+    from semuav_jax.sb3 import SemUAVVecEnv
+
+    with pytest.raises(ValueError, match=match) as err:
+        SemUAVVecEnv(**({"num_envs": 2} | kw), curves=curves, K=K)
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize(
+    "actions, match",
+    [
+        (np.zeros(3, np.int64), r"shape \(4,\), got int64 \(3,\)"),
+        (np.zeros(4), "got float64"),
+        (np.full(4, 9), r"\[0, 8\]"),
+    ],
+)
+def test_sb3_vec_env_bad_actions(curves, actions, match):
+    pytest.importorskip("stable_baselines3")
+    from semuav_jax.sb3 import SemUAVVecEnv
+
+    env = SemUAVVecEnv(num_envs=E, curves=curves, K=K)
+    env.reset()
+    with pytest.raises(ValueError, match=match) as err:
+        env.step(actions)
+    assert "\n" not in str(err.value)
