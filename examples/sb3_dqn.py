@@ -25,9 +25,9 @@ import numpy as np
 import torch
 from stable_baselines3 import DQN
 
-from baselines import tsp
 from baselines.dwell import DWELL_POLICIES, init_dwell
 from baselines.report import tune
+from baselines.tsp import solve_orders
 from semuav_jax.agents.agent import Agent
 from semuav_jax.agents.gym_shield import VectorShieldWrapper
 from semuav_jax.agents.runs import shipped_folder
@@ -57,7 +57,7 @@ def dwell_scores(test: SemUAVVectorEnv, knobs: dict, episodes: int) -> dict:
     the test env's initial states (the same layouts; ``rollout`` draws its own delays)."""
     test.reset(seed=TEST_SEED)
     s0, p = jax.device_get(test.state), test.env_params
-    order = tsp.solve_orders(s0.dev_pos, np.asarray(p.q0), np.asarray(p.q_fin))
+    order = solve_orders(s0.dev_pos, np.asarray(p.q0), np.asarray(p.q_fin))
     rank = np.argsort(order, axis=-1).astype(np.int32)
     out = {}
     for name, policy in DWELL_POLICIES.items():
