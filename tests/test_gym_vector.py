@@ -14,6 +14,16 @@ E = 4  # sub-envs (one shape: the tests share compiled programs)
 N_SUBSET = gym_vector.SUBSET_MIN + 16  # enough sub-envs for resets of only the rows that need them
 
 
+def vector_class(adapter: str):
+    """The Gymnasium vector env, or SB3's VecEnv over it (skipped without stable-baselines3)."""
+    if adapter == "sb3":
+        pytest.importorskip("stable_baselines3")
+        from semuav_jax.sb3 import SemUAVVecEnv
+
+        return SemUAVVecEnv
+    return SemUAVVectorEnv
+
+
 def make_pair(curves, n, actions="table", mode=AutoresetMode.NEXT_STEP):
     """(ours, SyncVectorEnv over n SemUAVGymEnv). The destination 22 m from q0: some episodes arrive
     within a few slots, the others run to t = K, so sub-envs end and autoreset at different steps."""
@@ -135,9 +145,10 @@ def test_one_compiled_step(curves):
         ({"render_mode": "human"}, "render_mode must be None or one of .*got 'human'"),
     ],
 )
-def test_bad_constructor_arguments(curves, kw, match):
+@pytest.mark.parametrize("adapter", ["gymnasium", "sb3"])
+def test_bad_constructor_arguments(curves, adapter, kw, match):
     with pytest.raises(ValueError, match=match) as err:
-        SemUAVVectorEnv(**({"num_envs": 2} | kw), curves=curves, K=K)
+        vector_class(adapter)(**({"num_envs": 2} | kw), curves=curves, K=K)
     assert "\n" not in str(err.value)
 
 
@@ -152,9 +163,10 @@ def test_bad_constructor_arguments(curves, kw, match):
         (np.array([0, -1, 2, 2]), r"got values in \[-1, 2\]"),
     ],
 )
-def test_bad_actions(curves, actions, match):
-    env = SemUAVVectorEnv(num_envs=E, curves=curves, K=K)
-    env.reset(seed=0)
+@pytest.mark.parametrize("adapter", ["gymnasium", "sb3"])
+def test_bad_actions(curves, adapter, actions, match):
+    env = vector_class(adapter)(num_envs=E, curves=curves, K=K)
+    env.reset()
     with pytest.raises(ValueError, match=match) as err:
         env.step(actions)
     assert "\n" not in str(err.value)
@@ -253,40 +265,4 @@ def test_ragged_vector_actions_are_one_line(curves):
     env.reset(seed=0)
     with pytest.raises(ValueError, match=r"shape \(4,\), got \[0, \[1, 2\], 3, 4\]$") as err:
         env.step([0, [1, 2], 3, 4])
-    assert "\n" not in str(err.value)
-
-
-@pytest.mark.parametrize(
-    "kw, match",
-    [
-        ({"num_envs": 0}, "num_envs must be an integer >= 1, got 0"),
-        ({"actions": "speed"}, "actions must be one of .*got 'speed'"),
-        ({"render_mode": "human"}, "render_mode must be None or one of .*got 'human'"),
-    ],
-)
-def test_sb3_vec_env_bad_arguments(curves, kw, match):
-    pytest.importorskip("stable_baselines3")
-    from semuav_jax.sb3 import SemUAVVecEnv
-
-    with pytest.raises(ValueError, match=match) as err:
-        SemUAVVecEnv(**({"num_envs": 2} | kw), curves=curves, K=K)
-    assert "\n" not in str(err.value)
-
-
-@pytest.mark.parametrize(
-    "actions, match",
-    [
-        (np.zeros(3, np.int64), r"shape \(4,\), got int64 \(3,\)"),
-        (np.zeros(4), "got float64"),
-        (np.full(4, 9), r"\[0, 8\]"),
-    ],
-)
-def test_sb3_vec_env_bad_actions(curves, actions, match):
-    pytest.importorskip("stable_baselines3")
-    from semuav_jax.sb3 import SemUAVVecEnv
-
-    env = SemUAVVecEnv(num_envs=E, curves=curves, K=K)
-    env.reset()
-    with pytest.raises(ValueError, match=match) as err:
-        env.step(actions)
     assert "\n" not in str(err.value)
