@@ -61,7 +61,7 @@ def _vector_step(keys, states, actions, autoreset, params, mode, same_step, size
     instead of stepping; same-step mode: the ones that end reset right after their step. Resets and
     episode metrics (eq. 8.1) are computed only for the sub-envs that need them (``_replace_rows``).
     Returns the new keys and states (kept on the device) and, for the host, the observations and
-    the packed columns reward, terminated, infos, metrics (``_pack``; layout in ``_layout``)."""
+    the packed columns reward, terminated, infos, metrics (``_pack``; layout in ``_Columns``)."""
     k_s, obs_s, s_s, rew, term, info = jax.vmap(_step, (0, 0, 0, None, None))(keys, states, actions, params, mode)
     pick = term if same_step else autoreset
     key, obs, state = _replace_rows(
