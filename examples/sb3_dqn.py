@@ -7,9 +7,12 @@ stable-baselines3 and torch are not dependencies of semuav-jax; install them nex
 
 DQN learns on ``semuav_jax.sb3.SemUAVVecEnv`` (``--envs`` episodes stepped in one jitted call) with
 the 16 waypoint actions of eq. 6.2, the action space our DDQN uses. Then every policy flies the
-same ``--episodes`` test layouts in one ``SemUAVVectorEnv``: DQN greedy, DQN behind the BS's shield
-(``VectorShieldWrapper``), the shipped DDQN (its own input features and shield) and uniformly
-random waypoint actions. Prints mean PSNR (eq. 8.1) and arrival per policy; numbers in docs/env_api.md.
+same ``--episodes`` test layouts, drawn by one ``SemUAVVectorEnv`` seeded TEST_SEED + i: DQN greedy,
+DQN behind the BS's shield (``VectorShieldWrapper``), the shipped DDQN (its own input features and
+shield) and uniformly random waypoint actions step that env; greedy-dwell and TSP-dwell (the
+references of docs/baselines.md, at the knobs tuned on the validation layouts and recorded in the
+shipped agent's eval.json) fly ``rollout`` from the same initial states. Prints mean PSNR (eq. 8.1)
+with its 95 % CI, arrival per policy and the wall times; numbers in docs/env_api.md.
 """
 
 from __future__ import annotations
@@ -22,16 +25,23 @@ import numpy as np
 import torch
 from stable_baselines3 import DQN
 
+from baselines.dwell import DWELL_POLICIES, init_dwell
+from baselines.report import tune
+from baselines.tsp import solve_orders
 from semuav_jax.agents.agent import Agent
 from semuav_jax.agents.gym_shield import VectorShieldWrapper
+from semuav_jax.agents.runs import shipped_folder
+from semuav_jax.experiments.animation import shipped_tuned_speeds
 from semuav_jax.gym_vector import SemUAVVectorEnv
+from semuav_jax.keys import episode_keys
+from semuav_jax.rollout import rollout
 from semuav_jax.sb3 import SemUAVVecEnv
 
 TEST_SEED = 1_000_000  # sub-env i of the test env is seeded TEST_SEED + i: layouts never drawn in training
 
 
-def score(env, act, episodes: int) -> tuple[float, float]:
-    """Mean PSNR and arrival rate of the first episode of each of ``episodes`` sub-envs under ``act(obs)``."""
+def score(env, act, episodes: int) -> tuple[np.ndarray, np.ndarray]:
+    """PSNR and arrival of the first episode of each of ``episodes`` sub-envs under ``act(obs)``."""
     obs, _ = env.reset(seed=TEST_SEED)
     psnr, arrived = np.full(episodes, np.nan), np.zeros(episodes, bool)
     while np.isnan(psnr).any():
@@ -39,7 +49,32 @@ def score(env, act, episodes: int) -> tuple[float, float]:
         first = term & np.isnan(psnr)
         if first.any():
             psnr[first], arrived[first] = info["mean_psnr"][first], info["arrived"][first]
-    return float(psnr.mean()), float(arrived.mean())
+    return psnr, arrived
+
+
+def dwell_scores(test: SemUAVVectorEnv, knobs: dict, episodes: int) -> dict:
+    """PSNR and arrival of greedy-dwell and TSP-dwell at ``knobs`` ({name: (v_c, k*, margin)}) from
+    the test env's initial states (the same layouts; ``rollout`` draws its own delays)."""
+    test.reset(seed=TEST_SEED)
+    s0, p = jax.device_get(test.state), test.env_params
+    order = solve_orders(s0.dev_pos, np.asarray(p.q0), np.asarray(p.q_fin))
+    rank = np.argsort(order, axis=-1).astype(np.int32)
+    out = {}
+    for name, policy in DWELL_POLICIES.items():
+        ps = jax.vmap(init_dwell, (None, None, None, 0))(*knobs[name], rank)
+        m = rollout(policy, episode_keys(TEST_SEED, episodes), p, ps, init_state=s0)[0]
+        out[f"{name} {knobs[name]}"] = (np.asarray(m["mean_psnr"]), np.asarray(m["arrived"]))
+    return out
+
+
+def dwell_knobs(params, B: float, validation: int) -> dict:
+    """The dwell rules' knobs at B: the shipped agent's eval.json, else tuned on ``validation`` layouts."""
+    tuned = shipped_tuned_speeds(shipped_folder(), B)
+    if tuned is None or any(n not in tuned for n in DWELL_POLICIES):
+        print(f"tuning the dwell knobs at {B / 1e3:g} kHz on {validation} validation layouts")
+        t = tune(params, (B,), validation)
+        tuned = {n: tuple(t[n]["knobs"][0]) for n in DWELL_POLICIES}
+    return {n: tuple(float(x) for x in tuned[n]) for n in DWELL_POLICIES}
 
 
 def main() -> None:
@@ -49,7 +84,9 @@ def main() -> None:
     ap.add_argument("--episodes", type=int, default=200, help="test layouts")
     ap.add_argument("--B", type=float, default=25e3, help="bandwidth, Hz")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--validation-layouts", type=int, default=200, help="for tuning the dwell knobs when not shipped")
     args = ap.parse_args()
+    t_start = time.perf_counter()
 
     torch.set_num_threads(1)  # a 2 x 64 MLP: one thread is the fastest
     params = {"B": args.B, "reward_mode": "gain", "actions": "waypoint"}
@@ -82,15 +119,18 @@ def main() -> None:
         "our DDQN (shipped, shield)": score(
             test, lambda obs: np.asarray(agent_act(test.state, test.env_params)), args.episodes
         ),
-        "random waypoint actions": score(test, lambda obs: rng.integers(0, 16, args.episodes), args.episodes),
     }
+    rows |= dwell_scores(test, dwell_knobs(test.env_params, args.B, args.validation_layouts), args.episodes)
+    rows["random waypoint actions"] = score(test, lambda obs: rng.integers(0, 16, args.episodes), args.episodes)
     print(
         f"B = {args.B / 1e3:g} kHz, {args.episodes} test layouts; DQN trained on {args.envs} envs "
-        f"in {train_s:.0f} s ({args.timesteps / train_s:,.0f} env steps/s)"
+        f"in {train_s:.0f} s ({args.timesteps / train_s:,.0f} env steps/s); "
+        f"wall time {time.perf_counter() - t_start:.0f} s in all"
     )
     print("| policy | mean PSNR (dB) | arrived |\n|---|---|---|")
     for name, (psnr, arr) in rows.items():
-        print(f"| {name} | {psnr:.2f} | {arr:.0%} |")
+        ci = 1.96 * psnr.std(ddof=1) / np.sqrt(len(psnr))
+        print(f"| {name} | {psnr.mean():.2f} ± {ci:.2f} | {arr.mean():.0%} |")
 
 
 if __name__ == "__main__":

@@ -41,6 +41,14 @@ def _step(key, state, action, params, mode="table"):
 _metrics = jax.jit(episode_metrics)
 
 
+def describe(value) -> str:
+    """A one-line name of a bad value for an error message: arrays by dtype and shape."""
+    if isinstance(value, np.ndarray) and value.ndim > 0:
+        return f"{value.dtype} array of shape {value.shape}"
+    text = repr(value)
+    return text if len(text) <= 80 and "\n" not in text else f"{type(value).__name__} {text[:60]!r}..."
+
+
 def check_render_mode(render_mode, offered) -> None:
     """One-line ValueError unless ``render_mode`` is None or one of ``offered``."""
     if render_mode is not None and render_mode not in offered:
@@ -96,8 +104,8 @@ class SemUAVGymEnv(gymnasium.Env):
     def step(self, action):
         if self.env_state is None:
             raise RuntimeError("call reset() before step()")
-        if not self.action_space.contains(action):
-            raise ValueError(f"action must be an integer in [0, {self.action_space.n - 1}], got {action!r}")
+        if isinstance(action, bool) or not self.action_space.contains(action):
+            raise ValueError(f"action must be an integer in [0, {self.action_space.n - 1}], got {describe(action)}")
         self._key, obs, self.env_state, reward, terminated, info = _step(
             self._key, self.env_state, np.int32(action), self.env_params, self.actions
         )

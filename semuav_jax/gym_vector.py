@@ -18,51 +18,100 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from semuav_jax.env import ENV_ID, make
-from semuav_jax.gym_adapter import _reset, _step, check_render_mode, gym_spaces
+from semuav_jax.gym_adapter import _reset, _step, check_render_mode, describe, gym_spaces
 from semuav_jax.metrics import episode_metrics
 
 SEED_LIMIT = 2**32  # jax.random.key takes 32-bit seeds
+SUBSET_MIN = 64  # above this many sub-envs, up to n // 16 resets or metrics are computed on their rows only
 
 _vector_reset = jax.jit(jax.vmap(_reset, (0, None)))
 
 
-@partial(jax.jit, static_argnames=("mode", "same_step"))
-def _vector_step(keys, states, actions, autoreset, params, mode, same_step):
+def _replace_rows(mask, fn, args, base, size: int):
+    """``base`` with the rows where ``mask`` is set replaced by the rows of ``fn(args)`` (``fn`` acts
+    row by row), computing ``fn`` only when some row needs it and, if at most ``size`` do, only on
+    those rows (gathered, then scattered back): a few resets among 4096 sub-envs cost a few."""
+    n = mask.shape[0]
+
+    def every(_):
+        new = fn(args)
+        return jax.tree.map(lambda a, b: jnp.where(mask.reshape(mask.shape + (1,) * (a.ndim - 1)), a, b), new, base)
+
+    def some(_):
+        idx = jnp.nonzero(mask, size=size, fill_value=n)[0]  # n: a padding row, dropped by the scatter
+        new = fn(jax.tree.map(lambda a: jnp.take(a, idx, axis=0, mode="clip"), args))
+        return jax.tree.map(lambda b, a: b.at[idx].set(a, mode="drop"), base, new)
+
+    count = mask.sum()
+    if size >= n:
+        return jax.lax.cond(count > 0, every, lambda _: base, None)
+    return jax.lax.switch(jnp.minimum(count, 1) + (count > size), [lambda _: base, some, every], None)
+
+
+def _pack(columns: list) -> tuple[jax.Array, jax.Array]:
+    """(n,) columns as one (n, k) float32 matrix (ints are small counts: exact) and one bool matrix,
+    so that a step copies two arrays to the host instead of one per info key."""
+    floats = [c.astype(jnp.float32) for c in columns if c.dtype != bool]
+    return jnp.stack(floats, -1), jnp.stack([c for c in columns if c.dtype == bool], -1)
+
+
+@partial(jax.jit, static_argnames=("mode", "same_step", "size"), donate_argnames=("keys", "states"))
+def _vector_step(keys, states, actions, autoreset, params, mode, same_step, size):
     """Every sub-env's slot (eq. 3.1-3.10) in one call. Next-step mode: the ``autoreset`` ones reset
-    instead of stepping; same-step mode: the ones that end reset right after their step. The resets
-    and the episode metrics (eq. 8.1) are computed only in the steps that need them (``lax.cond``)."""
+    instead of stepping; same-step mode: the ones that end reset right after their step. Resets and
+    episode metrics (eq. 8.1) are computed only for the sub-envs that need them (``_replace_rows``).
+    Returns the new keys and states (kept on the device) and, for the host, the observations and
+    the packed columns reward, terminated, infos, metrics (``_pack``; layout in ``_Columns``)."""
     k_s, obs_s, s_s, rew, term, info = jax.vmap(_step, (0, 0, 0, None, None))(keys, states, actions, params, mode)
     pick = term if same_step else autoreset
-
-    def with_resets(_):
-        k_r, obs_r, s_r = _vector_reset(k_s if same_step else keys, params)
-        return jax.tree.map(
-            lambda a, b: jnp.where(pick.reshape(pick.shape + (1,) * (a.ndim - 1)), a, b),
-            (k_r, obs_r, s_r),
-            (k_s, obs_s, s_s),
-        )
-
-    key, obs, state = jax.lax.cond(pick.any(), with_resets, lambda _: (k_s, obs_s, s_s), None)
+    key, obs, state = _replace_rows(
+        pick, lambda k: _vector_reset(k, params), k_s if same_step else keys, (k_s, obs_s, s_s), size
+    )
     if not same_step:
         rew, term = jnp.where(autoreset, 0.0, rew), term & ~autoreset
     metrics = jax.vmap(episode_metrics, (0, None))
     zeros = jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), jax.eval_shape(metrics, s_s, params))
-    m = jax.lax.cond(term.any(), lambda s: metrics(s, params), lambda s: zeros, s_s)
-    return key, obs, state, rew, term, info, m, obs_s if same_step else None
+    m = _replace_rows(term, lambda s: metrics(s, params), s_s, zeros, size)
+    floats, flags = _pack([rew, term, *info.values(), *m.values()])
+    return key, state, obs, floats, flags, obs_s if same_step else None
 
 
-def _batch_info(info: dict, metrics: dict, live: np.ndarray, ended: np.ndarray) -> dict:
-    """Infos as Gymnasium's vector envs batch them: the step's ``info`` for the ``live`` sub-envs and
-    the episode metrics (eq. 8.1) for the ``ended`` ones, each key with its mask ``_key``, a key only
-    if some sub-env has it, 0 where masked out."""
-    out = {}
-    for k, v in info.items() if live.any() else ():
-        out |= {k: np.where(live, v, np.zeros_like(v)), f"_{k}": live}
-    for k, v in metrics.items() if ended.any() else ():  # "arrived" and "valid" already in: updated
-        out |= (
-            {k: np.where(ended, v, out[k])} if k in out else {k: np.where(ended, v, np.zeros_like(v)), f"_{k}": ended}
-        )
-    return out
+class _Columns:
+    """Where ``_pack`` puts each step info and episode metric, and the batched infos built from them."""
+
+    def __init__(self, params, mode: str):
+        key = jax.random.key(0)
+        _, _, state = jax.eval_shape(_reset, key, params)
+        info = jax.eval_shape(_step, key, state, jnp.int32(0), params, mode)[-1]
+        metrics = jax.eval_shape(episode_metrics, state, params)
+        self.keys = []  # (name, is a metric, in the bool matrix, column, dtype)
+        metric = {False: [False], True: [False]}  # column 0: the reward / terminated
+        for is_metric, d in ((False, info), (True, metrics)):
+            for k, v in d.items():
+                flag = v.dtype == bool
+                self.keys.append((k, is_metric, flag, len(metric[flag]), np.dtype(v.dtype)))
+                metric[flag].append(is_metric)
+        self.metric = {flag: np.array(m) for flag, m in metric.items()}
+
+    def infos(self, floats: np.ndarray, flags: np.ndarray, live: np.ndarray, ended: np.ndarray) -> dict:
+        """Infos as Gymnasium's vector envs batch them: the step's infos for the ``live`` sub-envs
+        and the episode metrics (eq. 8.1) for the ``ended`` ones, each key with its mask ``_key``, a
+        key only if some sub-env has it, 0 where masked out; "arrived" and "valid", in both, take
+        the metric's value where the episode ended."""
+        masked = {
+            flag: np.where(np.where(self.metric[flag], ended[:, None], live[:, None]), m, np.zeros((), m.dtype))
+            for flag, m in ((False, floats), (True, flags))
+        }
+        out, any_live, any_ended = {}, live.any(), ended.any()
+        for k, is_metric, flag, j, dtype in self.keys:
+            if not (any_ended if is_metric else any_live):
+                continue
+            v = masked[flag][:, j].astype(dtype, copy=False)
+            if k in out:
+                out[k] = np.where(ended, v, out[k])
+            else:
+                out |= {k: v, f"_{k}": ended if is_metric else live}
+        return out
 
 
 def _seeds(seed, n: int) -> np.ndarray:
@@ -120,8 +169,11 @@ class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
         self.single_observation_space, self.single_action_space = gym_spaces(env, self.env_params)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self.state = None  # the batched EnvState, leading axis num_envs
+        self.state = None  # the batched EnvState, leading axis num_envs (its buffers are reused by step)
         self._keys = None
+        self._params = jax.device_put(self.env_params)  # once: Python floats cost a conversion per call
+        self._columns = _Columns(self._params, actions)
+        self._size = self.num_envs if self.num_envs <= SUBSET_MIN else self.num_envs // 16
         self._autoreset = np.zeros(self.num_envs, bool)
         self._trails = None  # rgb_array only: each sub-env's positions since its reset
 
@@ -132,7 +184,7 @@ class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
             self._keys = jax.vmap(jax.random.key)(seeds)
         elif self._keys is None:
             self._keys = jax.vmap(jax.random.key)(_seeds(int(self.np_random.integers(2**31)), self.num_envs))
-        self._keys, obs, self.state = _vector_reset(self._keys, self.env_params)
+        self._keys, obs, self.state = _vector_reset(self._keys, self._params)
         self._autoreset = np.zeros(self.num_envs, bool)
         if self.render_mode is not None:
             self._trails = [[q] for q in np.asarray(self.state.q)]
@@ -144,12 +196,13 @@ class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
         actions = self._check_actions(actions)
         reset = self._autoreset
         same_step = self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
-        self._keys, obs, self.state, rew, term, info, metrics, final_obs = _vector_step(
-            self._keys, self.state, actions, reset, self.env_params, self.actions, same_step
+        self._keys, self.state, *out = _vector_step(
+            self._keys, self.state, actions, reset, self._params, self.actions, same_step, self._size
         )
-        obs, rew, term, info, metrics, final_obs = jax.device_get((obs, rew, term, info, metrics, final_obs))
+        obs, floats, flags, final_obs = jax.device_get(out)
+        rew, term = floats[:, 0].astype(np.float64), flags[:, 0].copy()
         if same_step:
-            infos = _batch_info(info, metrics, ~term, np.zeros_like(term))
+            infos = self._columns.infos(floats, flags, ~term, np.zeros_like(term))
             if term.any():
                 final = np.full(self.num_envs, None, object)
                 for i in np.flatnonzero(term):
@@ -157,18 +210,23 @@ class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
                 infos |= {
                     "final_obs": final,
                     "_final_obs": term,
-                    "final_info": _batch_info(info, metrics, term, term),
+                    "final_info": self._columns.infos(floats, flags, term, term),
                     "_final_info": term,
                 }
         else:
-            infos = _batch_info(info, metrics, ~reset, term)
+            infos = self._columns.infos(floats, flags, ~reset, term)
             self._autoreset = term
         if self.render_mode is not None:
             self._follow(term if same_step else reset)
-        return obs, rew.astype(np.float64), term, np.zeros(self.num_envs, bool), infos
+        return obs, rew, term, np.zeros(self.num_envs, bool), infos
 
     def _check_actions(self, actions) -> np.ndarray:
-        a = np.asarray(actions)
+        try:
+            a = np.asarray(actions)
+        except ValueError:  # a ragged list
+            raise ValueError(
+                f"actions must be an integer array of shape ({self.num_envs},), got {describe(actions)}"
+            ) from None
         if a.shape != (self.num_envs,) or a.dtype.kind not in "iu":
             raise ValueError(f"actions must be an integer array of shape ({self.num_envs},), got {a.dtype} {a.shape}")
         n = self.single_action_space.n
@@ -178,7 +236,9 @@ class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
 
     def _follow(self, reset: np.ndarray):
         for i, q in enumerate(np.asarray(self.state.q)):
-            self._trails[i] = [q] if reset[i] else self._trails[i] + [q]
+            if reset[i]:
+                self._trails[i] = []
+            self._trails[i].append(q)
 
     def render(self):
         """``rgb_array``: one (H, W, 3) uint8 frame per sub-env (``semuav_jax.render``); None otherwise."""

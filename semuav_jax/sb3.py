@@ -18,6 +18,20 @@ except ImportError as e:  # pragma: no cover - exercised only without SB3
     raise ImportError('semuav_jax.sb3 needs stable-baselines3: pip install "semuav-jax[sb3]"') from e
 
 
+def _row_infos(source: dict, rows: np.ndarray) -> list[dict]:
+    """One info dict per row of ``rows`` from Gymnasium's batched infos (a key where its mask is
+    set), built from one ``.tolist()`` per key: the per-step Python work is one dict per sub-env."""
+    keys = [k for k in source if not k.startswith("_") and k not in ("final_obs", "final_info")]
+    if not keys:
+        return [{} for _ in rows]
+    values = zip(*(source[k][rows].tolist() for k in keys))
+    masks = [source[f"_{k}"][rows] for k in keys]
+    if all(m.all() for m in masks):  # the usual case: every key set for every row
+        return [dict(zip(keys, v)) for v in values]
+    masks = zip(*(m.tolist() for m in masks))
+    return [{k: x for k, x, on in zip(keys, v, m) if on} for v, m in zip(values, masks)]
+
+
 class SemUAVVecEnv(VecEnv):
     """n SemUAV environments with SB3's ``VecEnv`` API: ``reset() -> obs``, ``step(actions) -> (obs,
     rewards, dones, infos)``, the ended sub-envs reset in the same step with their last observation
@@ -45,16 +59,10 @@ class SemUAVVecEnv(VecEnv):
 
     def step_wait(self):
         obs, rew, term, _, info = self.venv.step(self._actions)
-        infos = [{"TimeLimit.truncated": False} for _ in range(self.num_envs)]
+        infos = [None] * self.num_envs
         for source, rows in ((info, np.flatnonzero(~term)), (info.get("final_info", {}), np.flatnonzero(term))):
-            # one .tolist() per key, not one .item() per sub-env and key: the loop below is all Python
-            cols = {
-                k: (v.tolist(), source[f"_{k}"])
-                for k, v in source.items()
-                if not k.startswith("_") and k not in ("final_obs", "final_info")
-            }
-            for i in rows.tolist():
-                infos[i] |= {k: v[i] for k, (v, mask) in cols.items() if mask[i]}
+            for i, d in zip(rows.tolist(), _row_infos(source, rows)):
+                infos[i] = d | {"TimeLimit.truncated": False}
         for i in np.flatnonzero(term):
             infos[i]["terminal_observation"] = info["final_obs"][i]
         return obs, rew.astype(np.float32), term, infos

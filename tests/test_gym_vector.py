@@ -11,6 +11,17 @@ from semuav_jax.gym_vector import SemUAVVectorEnv
 
 K = 12  # short episodes: several autoresets within a few dozen steps
 E = 4  # sub-envs (one shape: the tests share compiled programs)
+N_SUBSET = gym_vector.SUBSET_MIN + 16  # enough sub-envs for resets of only the rows that need them
+
+
+def vector_class(adapter: str):
+    """The Gymnasium vector env, or SB3's VecEnv over it (skipped without stable-baselines3)."""
+    if adapter == "sb3":
+        pytest.importorskip("stable_baselines3")
+        from semuav_jax.sb3 import SemUAVVecEnv
+
+        return SemUAVVecEnv
+    return SemUAVVectorEnv
 
 
 def make_pair(curves, n, actions="table", mode=AutoresetMode.NEXT_STEP):
@@ -41,13 +52,19 @@ def assert_infos_equal(a: dict, b: dict):
 
 
 @pytest.mark.parametrize(
-    "actions, mode",
-    [("table", AutoresetMode.NEXT_STEP), ("waypoint", AutoresetMode.NEXT_STEP), ("table", AutoresetMode.SAME_STEP)],
+    "actions, mode, n",
+    [
+        ("table", AutoresetMode.NEXT_STEP, E),
+        ("waypoint", AutoresetMode.NEXT_STEP, E),
+        ("table", AutoresetMode.SAME_STEP, E),
+        ("table", AutoresetMode.NEXT_STEP, N_SUBSET),
+        ("table", AutoresetMode.SAME_STEP, N_SUBSET),
+    ],
 )
-def test_vector_episodes_equal_single_envs(curves, actions, mode):
+def test_vector_episodes_equal_single_envs(curves, actions, mode, n):
     """Same seeds, same actions: the vector env's episodes (through autoresets at different steps)
-    are those of Gymnasium's SyncVectorEnv over n SemUAVGymEnv, infos and masks included."""
-    n = E
+    are those of Gymnasium's SyncVectorEnv over n SemUAVGymEnv, infos and masks included. With
+    n > SUBSET_MIN, steps where at most ``size`` sub-envs end reset only those rows, the others all."""
     vec, sync = make_pair(curves, n, actions, mode)
     assert isinstance(vec.unwrapped, SemUAVVectorEnv) and vec.metadata["autoreset_mode"] == mode
     assert vec.action_space == sync.action_space and vec.observation_space == sync.observation_space
@@ -55,7 +72,7 @@ def test_vector_episodes_equal_single_envs(curves, actions, mode):
     obs_s, _ = sync.reset(seed=11)
     np.testing.assert_array_equal(obs_v, obs_s)
     rng = np.random.default_rng(0)
-    ends, partial = 0, 0
+    ends, partial, counts = 0, 0, set()
     for _ in range(3 * K):
         a = rng.integers(0, vec.single_action_space.n, n)
         obs_v, r_v, term_v, trunc_v, info_v = vec.step(a)
@@ -67,7 +84,11 @@ def test_vector_episodes_equal_single_envs(curves, actions, mode):
         assert_infos_equal(info_v, info_s)
         ends += int(term_v.sum())
         partial += int(0 < term_v.sum() < n)
+        counts.add(int(term_v.sum()))
     assert ends >= 2 * n and partial >= 2  # autoresets, some of them of only part of the sub-envs
+    size = vec.unwrapped._size
+    if size < n:  # both paths of _replace_rows: a few rows gathered, and all rows
+        assert any(0 < c <= size for c in counts) and any(c > size for c in counts), counts
     # a reset without seed continues each sub-env's key chain, as the single env does
     np.testing.assert_allclose(vec.reset()[0], sync.reset()[0], rtol=1e-5, atol=1e-5)
 
@@ -124,9 +145,10 @@ def test_one_compiled_step(curves):
         ({"render_mode": "human"}, "render_mode must be None or one of .*got 'human'"),
     ],
 )
-def test_bad_constructor_arguments(curves, kw, match):
+@pytest.mark.parametrize("adapter", ["gymnasium", "sb3"])
+def test_bad_constructor_arguments(curves, adapter, kw, match):
     with pytest.raises(ValueError, match=match) as err:
-        SemUAVVectorEnv(**({"num_envs": 2} | kw), curves=curves, K=K)
+        vector_class(adapter)(**({"num_envs": 2} | kw), curves=curves, K=K)
     assert "\n" not in str(err.value)
 
 
@@ -141,9 +163,10 @@ def test_bad_constructor_arguments(curves, kw, match):
         (np.array([0, -1, 2, 2]), r"got values in \[-1, 2\]"),
     ],
 )
-def test_bad_actions(curves, actions, match):
-    env = SemUAVVectorEnv(num_envs=E, curves=curves, K=K)
-    env.reset(seed=0)
+@pytest.mark.parametrize("adapter", ["gymnasium", "sb3"])
+def test_bad_actions(curves, adapter, actions, match):
+    env = vector_class(adapter)(num_envs=E, curves=curves, K=K)
+    env.reset()
     with pytest.raises(ValueError, match=match) as err:
         env.step(actions)
     assert "\n" not in str(err.value)
@@ -214,3 +237,32 @@ def test_single_adapter_waypoint_actions_follow_the_gymnax_env(curves):
             g.step(bad)
     with pytest.raises(ValueError, match="actions must be one of .*got 'speed'"):
         SemUAVGymEnv(actions="speed", curves=curves, K=K)
+
+
+@pytest.mark.parametrize(
+    "action, shown",
+    [
+        (True, "True"),
+        (np.float32(2.0), "np.float32(2.0)"),
+        (np.zeros((3, 3), np.int64), "int64 array of shape (3, 3)"),
+        ("1", "'1'"),
+    ],
+)
+def test_single_adapter_bad_action_type_is_one_line(curves, action, shown):
+    """A bool, a float, an array or a string is not a Discrete action: one line naming it (no
+    multi-line array repr); a bool is refused although Python counts it as an int."""
+    from semuav_jax.gym_adapter import SemUAVGymEnv
+
+    g = SemUAVGymEnv(curves=curves, K=K)
+    g.reset(seed=0)
+    with pytest.raises(ValueError, match=r"action must be an integer in \[0, 8\], got ") as err:
+        g.step(action)
+    assert str(err.value).endswith(shown) and "\n" not in str(err.value)
+
+
+def test_ragged_vector_actions_are_one_line(curves):
+    env = SemUAVVectorEnv(num_envs=E, curves=curves, K=K)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"shape \(4,\), got \[0, \[1, 2\], 3, 4\]$") as err:
+        env.step([0, [1, 2], 3, 4])
+    assert "\n" not in str(err.value)
