@@ -6,16 +6,19 @@ Importing this module registers it with Gymnasium as ``"SemUAV-v0"``, so
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from functools import partial
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import gymnasium
 import jax
 import numpy as np
+from jax.typing import ArrayLike
 
 from semuav_jax.actions import ACTION_MODES
-from semuav_jax.env import ENV_ID, SemUAVEnv, make
+from semuav_jax.env import ENV_ID, EnvState, SemUAVEnv, make
 from semuav_jax.metrics import episode_metrics
+from semuav_jax.params import EnvParams
 
 # The jitted functions take the parameters as an argument, so every adapter with the same static
 # parameters (K, M, N, ...) and action mode shares one compiled program; these instances only
@@ -24,14 +27,16 @@ _ENVS = {mode: SemUAVEnv(actions=mode) for mode in ACTION_MODES}
 
 
 @jax.jit
-def _reset(key, params):
+def _reset(key: jax.Array, params: EnvParams) -> tuple[jax.Array, jax.Array, EnvState]:
     key, k = jax.random.split(key)
     obs, state = _ENVS["table"].reset_env(k, params)
     return key, obs, state
 
 
 @partial(jax.jit, static_argnames="mode")
-def _step(key, state, action, params, mode="table"):
+def _step(
+    key: jax.Array, state: EnvState, action: ArrayLike, params: EnvParams, mode: str = "table"
+) -> tuple[jax.Array, jax.Array, EnvState, jax.Array, jax.Array, dict[str, jax.Array]]:
     key, k = jax.random.split(key)
     k_step, _ = jax.random.split(k)  # the key gymnax's ``Environment.step(k, ...)`` steps with
     obs, state, reward, terminated, info = _ENVS[mode].step_env(k_step, state, action, params)
@@ -41,7 +46,7 @@ def _step(key, state, action, params, mode="table"):
 _metrics = jax.jit(episode_metrics)
 
 
-def describe(value) -> str:
+def describe(value: object) -> str:
     """A one-line name of a bad value for an error message: arrays by dtype and shape."""
     if isinstance(value, np.ndarray) and value.ndim > 0:
         return f"{value.dtype} array of shape {value.shape}"
@@ -49,13 +54,13 @@ def describe(value) -> str:
     return text if len(text) <= 80 and "\n" not in text else f"{type(value).__name__} {text[:60]!r}..."
 
 
-def check_render_mode(render_mode, offered) -> None:
+def check_render_mode(render_mode: str | None, offered: Sequence[str]) -> None:
     """One-line ValueError unless ``render_mode`` is None or one of ``offered``."""
     if render_mode is not None and render_mode not in offered:
         raise ValueError(f"render_mode must be None or one of {offered}, got {render_mode!r}")
 
 
-def gym_spaces(env: SemUAVEnv, params) -> tuple[gymnasium.spaces.Box, gymnasium.spaces.Discrete]:
+def gym_spaces(env: SemUAVEnv, params: EnvParams) -> tuple[gymnasium.spaces.Box, gymnasium.spaces.Discrete]:
     """Gymnasium's observation ``Box`` (float32, eq. 5.1) and ``Discrete`` action space of one env."""
     space = env.observation_space(params)
     low, high = np.asarray(space.low, np.float32), np.asarray(space.high, np.float32)
@@ -78,7 +83,7 @@ class SemUAVGymEnv(gymnasium.Env):
 
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": 10}
 
-    def __init__(self, render_mode: str | None = None, actions: str = "table", **params):
+    def __init__(self, render_mode: str | None = None, actions: str = "table", **params: Any) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
         env, self.env_params = make(ENV_ID, actions=actions, **params)
         self.actions, self.render_mode = actions, render_mode
@@ -87,7 +92,7 @@ class SemUAVGymEnv(gymnasium.Env):
         self.env_state = None
         self._key = None
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         if seed is not None and (
             isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**32
         ):
@@ -101,7 +106,7 @@ class SemUAVGymEnv(gymnasium.Env):
         self._trail = [np.asarray(self.env_state.q)] if self.render_mode else []
         return np.array(obs), {}
 
-    def step(self, action):
+    def step(self, action: int | np.integer) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self.env_state is None:
             raise RuntimeError("call reset() before step()")
         if isinstance(action, bool) or not self.action_space.contains(action):
@@ -117,7 +122,7 @@ class SemUAVGymEnv(gymnasium.Env):
             self._trail.append(np.asarray(self.env_state.q))
         return np.array(obs), float(reward), bool(terminated), False, info
 
-    def render(self):
+    def render(self) -> np.ndarray | None:
         """``rgb_array``: an (H, W, 3) uint8 picture of the episode so far; None without render_mode."""
         if self.render_mode is None or self.env_state is None:
             return None

@@ -7,19 +7,23 @@ the ``SemUAVGymEnv`` that Gymnasium's ``SyncVectorEnv`` would hold, at a fractio
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from functools import partial
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import gymnasium
 import jax
 import jax.numpy as jnp
 import numpy as np
+import numpy.typing as npt
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
+from jax.typing import ArrayLike
 
-from semuav_jax.env import ENV_ID, make
+from semuav_jax.env import ENV_ID, EnvState, make
 from semuav_jax.gym_adapter import _reset, _step, check_render_mode, describe, gym_spaces
 from semuav_jax.metrics import episode_metrics
+from semuav_jax.params import EnvParams
 
 SEED_LIMIT = 2**32  # jax.random.key takes 32-bit seeds
 SUBSET_MIN = 64  # above this many sub-envs, up to n // 16 resets or metrics are computed on their rows only
@@ -27,7 +31,7 @@ SUBSET_MIN = 64  # above this many sub-envs, up to n // 16 resets or metrics are
 _vector_reset = jax.jit(jax.vmap(_reset, (0, None)))
 
 
-def _replace_rows(mask, fn, args, base, size: int):
+def _replace_rows(mask: jax.Array, fn: Callable[[Any], Any], args: Any, base: Any, size: int) -> Any:
     """``base`` with the rows where ``mask`` is set replaced by the rows of ``fn(args)`` (``fn`` acts
     row by row), computing ``fn`` only when some row needs it and, if at most ``size`` do, only on
     those rows (gathered, then scattered back): a few resets among 4096 sub-envs cost a few."""
@@ -56,7 +60,16 @@ def _pack(columns: list) -> tuple[jax.Array, jax.Array]:
 
 
 @partial(jax.jit, static_argnames=("mode", "same_step", "size"), donate_argnames=("keys", "states"))
-def _vector_step(keys, states, actions, autoreset, params, mode, same_step, size):
+def _vector_step(
+    keys: jax.Array,
+    states: EnvState,
+    actions: ArrayLike,
+    autoreset: ArrayLike,
+    params: EnvParams,
+    mode: str,
+    same_step: bool,
+    size: int,
+) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, jax.Array, jax.Array | None]:
     """Every sub-env's slot (eq. 3.1-3.10) in one call. Next-step mode: the ``autoreset`` ones reset
     instead of stepping; same-step mode: the ones that end reset right after their step. Resets and
     episode metrics (eq. 8.1) are computed only for the sub-envs that need them (``_replace_rows``).
@@ -79,7 +92,7 @@ def _vector_step(keys, states, actions, autoreset, params, mode, same_step, size
 class _Columns:
     """Where ``_pack`` puts each step info and episode metric, and the batched infos built from them."""
 
-    def __init__(self, params, mode: str):
+    def __init__(self, params: EnvParams, mode: str) -> None:
         key = jax.random.key(0)
         _, _, state = jax.eval_shape(_reset, key, params)
         info = jax.eval_shape(_step, key, state, jnp.int32(0), params, mode)[-1]
@@ -114,7 +127,7 @@ class _Columns:
         return out
 
 
-def _seeds(seed, n: int) -> np.ndarray:
+def _seeds(seed: int | Sequence[int], n: int) -> np.ndarray:
     """(n,) uint32 seeds: ``seed + i`` for an int (as ``SyncVectorEnv``), or a list of n ints."""
     s = [seed + i for i in range(n)] if isinstance(seed, (int, np.integer)) else seed
     if (
@@ -156,8 +169,8 @@ class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
         actions: str = "table",
         render_mode: str | None = None,
         autoreset_mode: AutoresetMode = AutoresetMode.NEXT_STEP,
-        **params,
-    ):
+        **params: Any,
+    ) -> None:
         if autoreset_mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
             raise ValueError(f"autoreset_mode must be AutoresetMode.NEXT_STEP or SAME_STEP, got {autoreset_mode!r}")
         self.metadata = self.metadata | {"autoreset_mode": autoreset_mode}
@@ -177,7 +190,9 @@ class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
         self._autoreset = np.zeros(self.num_envs, bool)
         self._trails = None  # rgb_array only: each sub-env's positions since its reset
 
-    def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
+    def reset(
+        self, *, seed: int | list[int] | None = None, options: dict | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         seeds = None if seed is None else _seeds(seed, self.num_envs)
         super().reset(seed=None if seeds is None else int(seeds[0]))
         if seeds is not None:
@@ -190,7 +205,7 @@ class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
             self._trails = [[q] for q in np.asarray(self.state.q)]
         return np.asarray(obs), {}
 
-    def step(self, actions):
+    def step(self, actions: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         if self.state is None:
             raise RuntimeError("call reset() before step()")
         actions = self._check_actions(actions)
@@ -220,7 +235,7 @@ class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
             self._follow(term if same_step else reset)
         return obs, rew, term, np.zeros(self.num_envs, bool), infos
 
-    def _check_actions(self, actions) -> np.ndarray:
+    def _check_actions(self, actions: npt.ArrayLike) -> np.ndarray:
         try:
             a = np.asarray(actions)
         except ValueError:  # a ragged list
@@ -234,13 +249,13 @@ class SemUAVVectorEnv(gymnasium.vector.VectorEnv):
             raise ValueError(f"actions must lie in [0, {n - 1}], got values in [{a.min()}, {a.max()}]")
         return a.astype(np.int32)
 
-    def _follow(self, reset: np.ndarray):
+    def _follow(self, reset: np.ndarray) -> None:
         for i, q in enumerate(np.asarray(self.state.q)):
             if reset[i]:
                 self._trails[i] = []
             self._trails[i].append(q)
 
-    def render(self):
+    def render(self) -> tuple[np.ndarray, ...] | None:
         """``rgb_array``: one (H, W, 3) uint8 frame per sub-env (``semuav_jax.render``); None otherwise."""
         if self.render_mode is None or self.state is None:
             return None

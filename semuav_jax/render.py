@@ -5,7 +5,11 @@ its trail, the time and the mean PSNR so far (eq. 8.1). matplotlib's Agg canvas,
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from typing import TYPE_CHECKING
+
 import numpy as np
+import numpy.typing as npt
 from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import Normalize
@@ -15,11 +19,17 @@ from matplotlib.patches import Circle, Rectangle
 from semuav_jax.control import range_radius
 from semuav_jax.params import EnvParams
 
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.cm import ScalarMappable
+
+    from semuav_jax.env import EnvState
+
 SHARE_CMAP = colormaps["viridis"]
 SHARE_NORM = Normalize(0.0, 1.0)
 
 
-def view_limits(params: EnvParams, trails=()) -> tuple[np.ndarray, np.ndarray]:
+def view_limits(params: EnvParams, trails: Iterable[npt.ArrayLike] = ()) -> tuple[np.ndarray, np.ndarray]:
     """(lo, hi) corners that show the area, q0, q_fin and every point of ``trails``, 20 m of margin."""
     pts = [
         np.array([[0.0, 0.0], [float(params.Lx), float(params.Ly)]]),
@@ -30,7 +40,18 @@ def view_limits(params: EnvParams, trails=()) -> tuple[np.ndarray, np.ndarray]:
     return pts.min(0) - 20.0, pts.max(0) + 20.0
 
 
-def draw(ax, params: EnvParams, dev_pos, m, x, trail, t: int, mean_psnr: float, title: str | None = None, limits=None):
+def draw(
+    ax: Axes,
+    params: EnvParams,
+    dev_pos: npt.ArrayLike,
+    m: npt.ArrayLike,
+    x: npt.ArrayLike,
+    trail: npt.ArrayLike,
+    t: int,
+    mean_psnr: float,
+    title: str | None = None,
+    limits: tuple[np.ndarray, np.ndarray] | None = None,
+) -> None:
     """Draw one moment on ``ax``: ``dev_pos`` (N, 2), ``m`` (N,) symbols received, ``x`` (N,) bool
     transmitting, ``trail`` (T, 2) the UAV's positions up to now (last: where it is), slot ``t``."""
     dev_pos, share = np.asarray(dev_pos), np.clip(np.asarray(m) / float(params.M), 0.0, 1.0)
@@ -67,14 +88,21 @@ def draw(ax, params: EnvParams, dev_pos, m, x, trail, t: int, mean_psnr: float, 
     ax.set_title(clock if title is None else f"{title}\n{clock}", fontsize=8)
 
 
-def figure_rgb(fig) -> np.ndarray:
+def figure_rgb(fig: Figure) -> np.ndarray:
     """The (H, W, 3) uint8 pixels of a matplotlib ``Figure`` drawn on an Agg canvas."""
     canvas = FigureCanvasAgg(fig)
     canvas.draw()
     return np.asarray(canvas.buffer_rgba())[..., :3].copy()
 
 
-def rgb_frame(state, params: EnvParams, trail, title: str | None = None, size=(6.4, 4.4), dpi: int = 100) -> np.ndarray:
+def rgb_frame(
+    state: EnvState,
+    params: EnvParams,
+    trail: npt.ArrayLike,
+    title: str | None = None,
+    size: tuple[float, float] = (6.4, 4.4),
+    dpi: int = 100,
+) -> np.ndarray:
     """An (H, W, 3) uint8 picture of one ``EnvState`` (NumPy or JAX leaves) with the UAV's ``trail``
     (T, 2), a colour bar of the received share beside it."""
     fig = Figure(figsize=size, dpi=dpi)
@@ -85,7 +113,7 @@ def rgb_frame(state, params: EnvParams, trail, title: str | None = None, size=(6
     return figure_rgb(fig)
 
 
-def _share_mappable():
+def _share_mappable() -> ScalarMappable:
     from matplotlib.cm import ScalarMappable
 
     return ScalarMappable(norm=SHARE_NORM, cmap=SHARE_CMAP)

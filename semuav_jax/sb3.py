@@ -7,6 +7,8 @@ is not a dependency of semuav-jax.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
@@ -16,6 +18,10 @@ try:
     from stable_baselines3.common.vec_env import VecEnv
 except ImportError as e:  # pragma: no cover - exercised only without SB3
     raise ImportError('semuav_jax.sb3 needs stable-baselines3: pip install "semuav-jax[sb3]"') from e
+
+if TYPE_CHECKING:
+    import gymnasium
+    from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices
 
 
 def _row_infos(source: dict, rows: np.ndarray) -> list[dict]:
@@ -42,22 +48,24 @@ class SemUAVVecEnv(VecEnv):
     and ``set_attr`` read and write the underlying :class:`SemUAVVectorEnv` (``.venv``).
     """
 
-    def __init__(self, num_envs: int = 1, actions: str = "table", render_mode: str | None = None, **params):
+    def __init__(
+        self, num_envs: int = 1, actions: str = "table", render_mode: str | None = None, **params: Any
+    ) -> None:
         self.venv = SemUAVVectorEnv(num_envs, actions, render_mode, autoreset_mode=AutoresetMode.SAME_STEP, **params)
         super().__init__(self.venv.num_envs, self.venv.single_observation_space, self.venv.single_action_space)
         self._actions = None
 
-    def reset(self):
+    def reset(self) -> np.ndarray:
         seeds = None if self._seeds[0] is None else [int(s) for s in self._seeds]
         obs, _ = self.venv.reset(seed=seeds)
         self._reset_seeds()
         self.reset_infos = [{} for _ in range(self.num_envs)]
         return obs
 
-    def step_async(self, actions) -> None:
+    def step_async(self, actions: np.ndarray) -> None:
         self._actions = actions
 
-    def step_wait(self):
+    def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
         obs, rew, term, _, info = self.venv.step(self._actions)
         infos = [None] * self.num_envs
         for source, rows in ((info, np.flatnonzero(~term)), (info.get("final_info", {}), np.flatnonzero(term))):
@@ -70,22 +78,24 @@ class SemUAVVecEnv(VecEnv):
     def close(self) -> None:
         self.venv.close()
 
-    def _count(self, indices) -> int:
+    def _count(self, indices: VecEnvIndices) -> int:
         return len(self._get_indices(indices))
 
-    def get_attr(self, attr_name: str, indices=None) -> list:
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list:
         return [getattr(self.venv, attr_name)] * self._count(indices)
 
-    def set_attr(self, attr_name: str, value, indices=None) -> None:
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
         if self._count(indices) != self.num_envs:
             raise ValueError("SemUAVVecEnv's attributes are shared by all sub-envs: set_attr needs indices=None")
         setattr(self.venv, attr_name, value)
 
-    def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list:
+    def env_method(
+        self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **method_kwargs: Any
+    ) -> list:
         raise NotImplementedError(f"SemUAVVecEnv steps all sub-envs in one call; call {method_name!r} on .venv")
 
-    def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
+    def env_is_wrapped(self, wrapper_class: type[gymnasium.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
         return [False] * self._count(indices)
 
-    def get_images(self):
+    def get_images(self) -> list[np.ndarray | None]:
         return list(self.venv.render() or [None] * self.num_envs)
