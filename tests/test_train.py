@@ -146,7 +146,7 @@ def test_interrupted_run_resumes_exactly(run_dir, curves_file, tmp_path):
     res = _train("--curves", curves_file, "--out", str(out), "--seeds", "2", *TINY, "--max-segments", "1")
     assert res.returncode == 0, res.stderr
     assert "continue with --resume" in res.stdout and not (out / "model.msgpack").exists()
-    res = _train("--out", str(out), "--resume", "--eval-episodes", "0")
+    res = _train("--out", str(out), "--resume")  # the saved run config, its evaluation options too
     assert res.returncode == 0, res.stderr
     assert "resuming" in res.stdout
     assert (out / "model.msgpack").read_bytes() == (run_dir / "model.msgpack").read_bytes()
@@ -164,7 +164,7 @@ def test_resume_drops_metrics_rows_the_checkpoint_lacks(run_dir, curves_file, tm
     with open(out / "metrics.csv", "a") as f:
         f.write("0,3,1,1,1,1,1,1,1,1,1\n")
     (out / "checkpoint.msgpack.abcd1234.tmp").write_bytes(b"half a checkpoint")
-    res = _train("--out", str(out), "--resume", "--eval-episodes", "0")
+    res = _train("--out", str(out), "--resume")  # the saved run config, its evaluation options too
     assert res.returncode == 0, res.stderr
     assert (out / "metrics.csv").read_bytes() == (run_dir / "metrics.csv").read_bytes()
     assert not (out / "checkpoint.msgpack.abcd1234.tmp").exists()
@@ -326,6 +326,6 @@ def test_sigint_stops_with_one_line_and_resumes(curves_file, tmp_path):
     assert proc.returncode == 130, err
     assert "interrupted" in err and "--resume" in err and "Traceback" not in err
     assert not (out / "model.msgpack").exists()
-    res = _train("--out", str(out), "--resume", "--eval-episodes", "0")
+    res = _train("--out", str(out), "--resume")  # the saved run config, its evaluation options too
     assert res.returncode == 0, res.stderr
     assert (out / "model.msgpack").is_file()
