@@ -16,3 +16,26 @@ def curves():
 @pytest.fixture(scope="session")
 def params(curves):
     return make_params(curves)
+
+
+# train.py options of a run that takes seconds (synthetic curves, 80 env steps, no evaluation)
+TRAIN_TINY = [
+    "--curves",
+    "synthetic",
+    "--num-envs",
+    "4",
+    "--steps-per-chunk",
+    "5",
+    "--total-steps",
+    "80",
+    "--learning-starts",
+    "32",
+    "--batch-size",
+    "8",
+    "--segments",
+    "2",
+    "--eval-episodes",
+    "0",
+    "--workers",
+    "1",
+]

@@ -10,6 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import TRAIN_TINY
 from flax import serialization
 
 from semuav_jax import env as E
@@ -429,28 +430,6 @@ def test_jscc_train_that_diverges_exits_2_and_saves_nothing(tmp_path, capsys, mo
     lines = [ln for ln in err.replace("\r", "\n").splitlines() if "error" in ln]  # beside the progress bar's
     assert code == 2 and len(lines) == 1 and "error: training diverged at step 2" in lines[0], err  # the last step
     assert not (tmp_path / "j" / "checkpoint.msgpack").exists() and not (tmp_path / "j" / ".semuav.lock").exists()
-
-
-TRAIN_TINY = [
-    "--curves",
-    "synthetic",
-    "--num-envs",
-    "4",
-    "--steps-per-chunk",
-    "5",
-    "--total-steps",
-    "80",
-    "--learning-starts",
-    "32",
-    "--batch-size",
-    "8",
-    "--segments",
-    "2",
-    "--eval-episodes",
-    "0",
-    "--workers",
-    "1",
-]
 
 
 @pytest.mark.slow

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import TRAIN_TINY
 
 from semuav_jax import runfolder
 from semuav_jax.runfolder import LOCK, MARKER, FolderError, RunFolder
@@ -118,28 +119,6 @@ def test_a_stale_lock_of_a_killed_process_is_taken_over(tmp_path):
     RunFolder.claim(tmp_path, "test").release()
 
 
-TINY = [
-    "--curves",
-    "synthetic",
-    "--num-envs",
-    "4",
-    "--steps-per-chunk",
-    "5",
-    "--total-steps",
-    "80",
-    "--learning-starts",
-    "32",
-    "--batch-size",
-    "8",
-    "--segments",
-    "2",
-    "--eval-episodes",
-    "0",
-    "--workers",
-    "1",
-]
-
-
 def _train(*args, timeout=600):
     return subprocess.run(
         [sys.executable, str(ROOT / "train.py"), *args],
@@ -160,13 +139,13 @@ def test_train_overwrite_and_resume_refused_while_a_run_holds_the_folder(tmp_pat
     from semuav_jax.cli.train_folder import prepare_folder
 
     out = tmp_path / "r"
-    args = parse_args([*TINY, "--out", str(out)])
+    args = parse_args([*TRAIN_TINY, "--out", str(out)])
     prepare_folder(args, load_run_config(args)).release()  # a run stopped before its first checkpoint
     before = {p.name: p.read_bytes() for p in out.iterdir()}
     p = _holder(out, "train.py run")
     try:
         for flag in ("--overwrite", "--resume"):
-            res = _train(*TINY, "--out", str(out), flag)
+            res = _train(*TRAIN_TINY, "--out", str(out), flag)
             assert res.returncode == 2 and f"pid {p.pid}" in res.stderr and res.stderr.count("\n") == 1, res.stderr
     finally:
         p.communicate("\n", timeout=60)
@@ -180,7 +159,7 @@ def test_train_refuses_to_overwrite_the_users_run_named_files(tmp_path, capsys):
     out.mkdir()
     (out / "config.json").write_text("my config")
     (out / "metrics.csv").write_text("my metrics")
-    assert main([*TINY, "--out", str(out), "--overwrite"]) == 2
+    assert main([*TRAIN_TINY, "--out", str(out), "--overwrite"]) == 2
     assert "did not write" in capsys.readouterr().err
     assert (out / "config.json").read_text() == "my config" and sorted(p.name for p in out.iterdir()) == [
         "config.json",
@@ -195,10 +174,10 @@ def test_a_run_stopped_before_its_first_checkpoint_is_restartable(tmp_path):
     from semuav_jax.cli.train_folder import prepare_folder
 
     out = tmp_path / "r"
-    args = parse_args([*TINY, "--out", str(out)])
+    args = parse_args([*TRAIN_TINY, "--out", str(out)])
     cfg = load_run_config(args)
     prepare_folder(args, cfg).release()
-    again = parse_args([*TINY, "--out", str(out)])
+    again = parse_args([*TRAIN_TINY, "--out", str(out)])
     prepare_folder(again, load_run_config(again)).release()
     resume = parse_args(["--out", str(out), "--resume"])
     assert load_run_config(resume) == cfg
