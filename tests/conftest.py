@@ -14,6 +14,14 @@ def curves():
 
 
 @pytest.fixture(scope="session")
+def curves_file(tmp_path_factory, curves):
+    """The synthetic curves as a file, for the commands' --curves."""
+    from semuav_jax.curves import save_curves
+
+    return str(save_curves(tmp_path_factory.mktemp("c") / "curves.npz", curves, {"source": "synthetic"}))
+
+
+@pytest.fixture(scope="session")
 def params(curves):
     return make_params(curves)
 

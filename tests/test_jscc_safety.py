@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from flax import serialization
 
-from semuav_jax import io
+from semuav_jax import checkpoint, io
 from semuav_jax.cli.jscc import main
 from semuav_jax.jscc import data
 from semuav_jax.jscc import train as train_mod
@@ -223,6 +223,12 @@ def _writer_killed_at(n, calls):
 KILL_CFG = dataclasses.replace(CFG, steps=3)
 
 
+def _kill_writes(m, write):
+    """``write`` in place of atomic_write for both writers of a run: config.json and the checkpoint."""
+    m.setattr(train_mod, "atomic_write", write)
+    m.setattr(checkpoint, "atomic_write", write)
+
+
 def _same_state(a, b):
     """Two load_checkpoint results: bit-identical arrays, the same step and the same logged steps
     and losses (the elapsed seconds differ from run to run)."""
@@ -239,7 +245,7 @@ def test_kill_at_any_write_of_a_save_resumes_to_the_uninterrupted_run(tmp_path, 
     history, is that of the uninterrupted run, and config.json holds the same config."""
     ref_calls = []
     with monkeypatch.context() as m:
-        m.setattr(train_mod, "atomic_write", _writer_killed_at(0, ref_calls))
+        _kill_writes(m, _writer_killed_at(0, ref_calls))
         train(KILL_CFG, PHOTOS, out=tmp_path / "ref", progress=False, log_every=1, ckpt_every_s=0.0)
     assert ref_calls == [CONFIG_FILE, CKPT_FILE, CKPT_FILE, CKPT_FILE]
     ref = _saved(tmp_path / "ref", KILL_CFG)
@@ -247,7 +253,7 @@ def test_kill_at_any_write_of_a_save_resumes_to_the_uninterrupted_run(tmp_path, 
     for n in range(1, len(ref_calls) + 1):
         out = tmp_path / f"killed_at_{n}"
         with monkeypatch.context() as m:
-            m.setattr(train_mod, "atomic_write", _writer_killed_at(n, []))
+            _kill_writes(m, _writer_killed_at(n, []))
             with pytest.raises(_Killed):
                 train(KILL_CFG, PHOTOS, out=out, progress=False, log_every=1, ckpt_every_s=0.0)
         if n == 1:  # killed before anything of the run was saved: there is nothing to resume

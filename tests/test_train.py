@@ -9,7 +9,6 @@ from pathlib import Path
 import pytest
 
 from semuav_jax.agents.config import DDQNConfig
-from semuav_jax.curves import save_curves
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = [
@@ -36,11 +35,6 @@ TINY = [
 
 def _train(*args):
     return subprocess.run([sys.executable, str(ROOT / "train.py"), *args], capture_output=True, text=True, cwd=ROOT)
-
-
-@pytest.fixture(scope="module")
-def curves_file(tmp_path_factory, curves):
-    return str(save_curves(tmp_path_factory.mktemp("c") / "curves.npz", curves, {"source": "synthetic"}))
 
 
 @pytest.fixture(scope="module")
@@ -299,33 +293,3 @@ def test_resume_of_a_broken_run_config_is_one_line(tmp_path, capsys):
         assert msg in err and str(out / "config.json") in err, err
     (out / "config.json").write_text("{trunc")
     assert "not a train.py run config" in _resume_error(capsys, out)
-
-
-@pytest.mark.slow
-def test_sigint_stops_with_one_line_and_resumes(curves_file, tmp_path):
-    """Ctrl-C during training: exit 130, a one-line message, no traceback; --resume then finishes."""
-    import signal
-    import time
-
-    out = tmp_path / "r"
-    longer = [*TINY[:4], "--total-steps", "2000", *TINY[6:10], "--segments", "10", "--eval-episodes", "0"]
-    # a test run in the background inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler
-    proc = subprocess.Popen(
-        [sys.executable, str(ROOT / "train.py"), "--curves", curves_file, "--out", str(out), *longer],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-    )
-    deadline = time.time() + 300
-    while not (out / "checkpoint.msgpack").exists() and time.time() < deadline:
-        time.sleep(0.2)
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=300)
-    assert proc.returncode == 130, err
-    assert "interrupted" in err and "--resume" in err and "Traceback" not in err
-    assert not (out / "model.msgpack").exists()
-    res = _train("--out", str(out), "--resume")  # the saved run config, its evaluation options too
-    assert res.returncode == 0, res.stderr
-    assert (out / "model.msgpack").is_file()

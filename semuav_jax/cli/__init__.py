@@ -6,16 +6,38 @@ The top floor: free to import every other part of the package; nothing below imp
 
 from __future__ import annotations
 
+import signal
 import sys
 from collections.abc import Callable
 from pathlib import Path
+
+_asked = {"stop": False}
+
+
+def _on_sigint(signum: int, frame: object) -> None:
+    _asked["stop"] = True
+    raise KeyboardInterrupt
+
+
+def stop_if_asked() -> None:
+    """Raise KeyboardInterrupt if Ctrl-C was pressed: Python drops the one raised while a garbage
+    collector callback (JAX has one) runs, so long loops call this between their steps."""
+    if _asked["stop"]:
+        raise KeyboardInterrupt
 
 
 def interruptible(run: Callable[[list[str] | None], int], argv: list[str] | None, resume_hint: str) -> int:
     """``run(argv)``, with Ctrl-C ending in one line and exit code 130 instead of a traceback (every
     file the commands write is written atomically, so the folder stays consistent)."""
+    ours = signal.getsignal(signal.SIGINT) is signal.default_int_handler  # not where SIGINT is ignored
+    if ours:
+        signal.signal(signal.SIGINT, _on_sigint)
     try:
         return run(argv)
     except KeyboardInterrupt:
         print(f"\n{Path(sys.argv[0]).name}: interrupted; {resume_hint}", file=sys.stderr)
         return 130
+    finally:
+        if ours:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+            _asked["stop"] = False

@@ -77,6 +77,8 @@ def _main(argv: list[str] | None = None) -> int:
             return 0
         table = sweep.merge(args.out, its)
     except ValueError as e:
+        if distributed.active():  # a lost peer's collective raises ValueError too: guarded ends the run (exit 1)
+            raise
         print(f"{name}: error: {e}", file=sys.stderr)
         return 2
     out = Path(args.out)

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 from semuav_jax import checkpoint, distributed
 from semuav_jax.agents.runs import CKPT_FILE, CURVE_FILE, EVAL_FILE, EVAL_MD, METRICS_FILE, MODEL_FILE
+from semuav_jax.cli import stop_if_asked
 from semuav_jax.cli.train_folder import INT_COLUMNS, UsageError, read_metrics
 
 if TYPE_CHECKING:
@@ -102,6 +103,7 @@ def train_run(cfg: RunConfig, folder: RunFolder, resume: bool, max_segments: int
     runs = {}
     bar = tqdm(total=config.num_chunks, initial=done, unit="chunk", desc="training", dynamic_ncols=True)
     for n in segment_lengths(config.num_chunks, cfg.segments, done)[:max_segments]:
+        stop_if_asked()
         if n not in runs:
             runs[n] = jax.jit(jax.vmap(lambda s, n=n: trainer.run(s, n)))
         state, metrics = runs[n](state)
@@ -131,6 +133,7 @@ def train_run(cfg: RunConfig, folder: RunFolder, resume: bool, max_segments: int
     if done < config.num_chunks:
         print(f"stopped at chunk {done} / {config.num_chunks}; continue with --resume --out {out}")
         return 0
+    stop_if_asked()
     wall = time.time() - t0
     if distributed.is_main():  # process 0 alone writes
         checkpoint.save(folder.record(MODEL_FILE), state.params)
