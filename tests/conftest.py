@@ -47,3 +47,7 @@ TRAIN_TINY = [
     "--workers",
     "1",
 ]
+
+
+# a semuav-sweep grid of seconds (2 bandwidths x 2 policies x 2 seeds), for test_distributed_results and _faults
+GRID = {"episodes": 6, "seeds": [0, 1], "policies": ["greedy", "tsp@15"], "params": {"B": [5e3, 25e3], "K": 60}}

@@ -1,5 +1,5 @@
 """Fig. 2's pipeline (semuav_jax/experiments/fig2.py, eval.py): behaviour measures by hand, properties
-of a reduced run, determinism (the same numbers on 1 or 2 devices or processes: test_distributed.py)."""
+of a reduced run, determinism (the same numbers on 1 or 2 devices or processes: test_distributed_results.py)."""
 
 import json
 from pathlib import Path
