@@ -61,23 +61,23 @@ def candidates(ps: DwellState, s: EnvState, params: EnvParams) -> jax.Array:
     return fits & (s.m < jnp.minimum(ps.k_star, params.M) - 1e-3)
 
 
-def _dwell(score: jax.Array, ps: DwellState, s: EnvState, params: EnvParams) -> tuple[jax.Array, DwellState]:
-    """Eq. 7.10: rest over the candidate of lowest ``score``, else fly home."""
+def dwell_command(score: jax.Array, ps: DwellState, s: EnvState, params: EnvParams) -> jax.Array:
+    """Eq. 7.10: the acceleration that rests over the candidate of lowest ``score``, else flies home."""
     cand = candidates(ps, s, params)
     i = jnp.argmin(jnp.where(cand, score, jnp.inf))
     dist = jnp.linalg.norm(s.dev_pos[i] - s.q)
     to_dev = speed_command(s.q, s.v, s.dev_pos[i], approach_speed(dist, ps.v_c, params, STOP_BRAKE), params)
-    return jnp.where(jnp.any(cand), to_dev, home_command(s.q, s.v, ps.v_c, params)), ps
+    return jnp.where(jnp.any(cand), to_dev, home_command(s.q, s.v, ps.v_c, params))
 
 
 def greedy_dwell(ps: DwellState, s: EnvState, params: EnvParams) -> tuple[jax.Array, DwellState]:
     """Greedy-dwell: the nearest candidate (eq. 7.9)."""
-    return _dwell(jnp.linalg.norm(s.dev_pos - s.q, axis=-1), ps, s, params)
+    return dwell_command(jnp.linalg.norm(s.dev_pos - s.q, axis=-1), ps, s, params), ps
 
 
 def tsp_dwell(ps: DwellState, s: EnvState, params: EnvParams) -> tuple[jax.Array, DwellState]:
     """TSP-dwell: the first candidate of the TSP order ``ps.rank``."""
-    return _dwell(ps.rank.astype(jnp.float32), ps, s, params)
+    return dwell_command(ps.rank.astype(jnp.float32), ps, s, params), ps
 
 
 DWELL_POLICIES = {"greedy-dwell": greedy_dwell, "tsp-dwell": tsp_dwell}

@@ -1,13 +1,15 @@
 """The reference table of docs/baselines.md: greedy and TSP at the paper's 8.9 m/s and at their
-tuned speed v_b*, greedy-dwell and TSP-dwell at their tuned knobs, the open-loop planner, the exact
-receding-horizon planner and the certified bound, per bandwidth.
+tuned speed v_b*, greedy-dwell and TSP-dwell at their tuned knobs, dwell-switch (those rules with
+k* chosen by simulation during the flight), the open-loop planner, the exact receding-horizon
+planner and the certified bound, per bandwidth.
 
 ``semuav-baselines`` or ``python -m baselines.report [--episodes 1000] [--validation-episodes 500]
 [--json out.json]`` (the command line: ``semuav_jax.cli.baselines``).
 
 v_b* and the dwell knobs (v_c, k*, margin) are chosen per bandwidth on the validation layouts
 (``keys.VALIDATION_SEED``) from ``SPEED_GRID`` and ``DWELL_GRID`` as the best mean PSNR among the
-settings that arrive in >= ``ARRIVAL_MIN`` of episodes, in one vmapped program per baseline; every
+settings that arrive in >= ``ARRIVAL_MIN`` of episodes, in one vmapped program per baseline (dwell-switch's
+margin from ``SWITCH_MARGINS`` on ``SWITCH_TUNING`` of those layouts, at TSP-dwell's v_c); every
 reported number comes from the test layouts (``keys.TEST_SEED``), the same episodes for every policy.
 """
 
@@ -23,12 +25,14 @@ import numpy as np
 from baselines import receding
 from baselines.bound import psnr_bound
 from baselines.dwell import DWELL_POLICIES, dwell_metrics, dwell_sweep, grid_points
+from baselines.dwell_switch import dwell_switch_metrics
 from baselines.evaluate import run, sweep, tsp_ranks
 from baselines.planner import PLAN_SPEEDS, make_plans, planner, visit_options
 from baselines.policies import DEFAULT_V_B
 from baselines.travel_bound import flight_account, travel_bound
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import validate_params
+from semuav_jax.sharding import map_episodes
 from semuav_jax.stats import mean_ci, wilson_interval
 
 if TYPE_CHECKING:
@@ -44,6 +48,8 @@ DWELL_GRID = {
     "k_star": (8.0, 16.0, 24.0, 32.0, 48.0, 64.0, 96.0, 128.0),
     "margin": (-6.0, -4.0, -2.0, 0.0, 2.0),
 }  # m/s, symbols, s
+SWITCH_MARGINS = (-2.0, 0.0)  # s: dwell-switch's candidates' margin, chosen per bandwidth
+SWITCH_TUNING = 200  # validation layouts that choose it (each costs ~200 simulated episodes)
 
 
 def tune(
@@ -52,8 +58,10 @@ def tune(
     episodes: int = 500,
     grid: Sequence[float] = SPEED_GRID,
     workers: int = 2,
+    switch: bool = True,
 ) -> dict:
-    """v_b* per bandwidth for each of ``TUNED`` on the validation layouts, and the grid's means."""
+    """v_b* per bandwidth for each of ``TUNED`` on the validation layouts, the dwell knobs, and
+    (``switch``) dwell-switch's margin; with the grids' means."""
     keys = episode_keys(VALIDATION_SEED, episodes)
     rank = tsp_ranks(keys, params, workers=workers)
     out = {"grid": list(grid), "episodes": episodes, "dwell_grid": {k: list(v) for k, v in DWELL_GRID.items()}}
@@ -68,7 +76,32 @@ def tune(
         psnr, arrived = m["mean_psnr"].mean(-1), m["arrived"].mean(-1)
         best = np.argmax(np.where(arrived >= ARRIVAL_MIN, psnr, -np.inf), axis=1)
         out[name] = {"knobs": [points[i] for i in best], "mean_psnr": psnr.tolist(), "arrived": arrived.tolist()}
+    if not switch:
+        return out
+    n = min(episodes, SWITCH_TUNING)
+    grid = [
+        [
+            switch_metrics(keys[:n], params.replace(B=b), out["tsp-dwell"]["knobs"][j][0], mg, rank[:n])
+            for mg in SWITCH_MARGINS
+        ]
+        for j, b in enumerate(bandwidths)
+    ]
+    psnr = np.array([[m["mean_psnr"].mean() for m in row] for row in grid])
+    arrived = np.array([[m["arrived"].mean() for m in row] for row in grid])
+    best = np.argmax(np.where(arrived >= ARRIVAL_MIN, psnr, -np.inf), axis=1)
+    out["dwell-switch"] = {
+        "switch": [[out["tsp-dwell"]["knobs"][j][0], SWITCH_MARGINS[i]] for j, i in enumerate(best)],
+        "episodes": n,
+        "margins": list(SWITCH_MARGINS),
+        "mean_psnr": psnr.tolist(),
+        "arrived": arrived.tolist(),
+    }
     return out
+
+
+def switch_metrics(keys: jax.Array, params: EnvParams, v_c: float, margin: float, rank: np.ndarray) -> dict:
+    """Dwell-switch's per-episode metrics, its episodes split over every device of every process."""
+    return map_episodes(lambda part: dwell_switch_metrics(part[0], params, v_c, margin, part[1])[0], (keys, rank))
 
 
 def flights(
@@ -100,6 +133,11 @@ def flights(
             v_c, k_star, margin = tuned[n]["knobs"][j]
             m = dwell_metrics(policy, keys, pb, v_c, k_star, margin, rank)
             row[n] = {"v_b": v_c, "knobs": [v_c, k_star, margin], **{k: np.asarray(x) for k, x in m.items()}}
+        if "dwell-switch" in tuned:
+            v_c, margin = tuned["dwell-switch"]["switch"][j]
+            t1 = time.perf_counter()
+            m = switch_metrics(keys, pb, v_c, margin, np.asarray(rank))
+            row["dwell-switch"] = {"v_b": v_c, "switch": [v_c, margin], **m, "wall_s": time.perf_counter() - t1}
         t1 = time.perf_counter()
         plan = make_plans(keys, pb, workers=workers) if plans is None else plans[j]
         row["planner"] = {
@@ -132,6 +170,12 @@ def summary(m: dict, T_s: float | None = None) -> dict:
 
 
 EXACT_VS = ("planner", "greedy-dwell", "tsp-dwell")  # the exact planner's target: the best of these + 0.5 dB
+SWITCH_VS = (*EXACT_VS, "exact planner")  # dwell-switch against the best of these
+
+
+def reference_summary(m: dict, T_s: float | None = None) -> dict:
+    """A row of the table: the policy's setting (v_b, dwell knobs or switch) and its :func:`summary`."""
+    return {"v_b": m["v_b"], **{x: m[x] for x in ("knobs", "switch") if x in m}, **summary(m, T_s)}
 
 
 def check_bandwidth(params: EnvParams, b: float, velocities: Iterable[float] = ()) -> None:
@@ -172,12 +216,9 @@ def report(
     for b, fl in zip(bandwidths, flights(params, keys, tuned, bandwidths, workers, account=True)):
         row = {
             "B": float(b),
-            "policies": {
-                k: {"v_b": m["v_b"], **({"knobs": m["knobs"]} if "knobs" in m else {}), **summary(m, T_s)}
-                for k, m in fl.items()
-            },
+            "policies": {k: reference_summary(m, T_s) for k, m in fl.items()},
         }
-        for name in ("planner", "exact planner"):
+        for name in ("planner", "exact planner", "dwell-switch"):
             row["policies"][name]["wall_s"] = fl[name]["wall_s"]
             row["policies"][name]["unserved"] = float(np.mean(params.N - np.asarray(fl[name]["coverage"])))
         row["planner_minus_tuned_greedy"] = mean_ci(fl["planner"]["mean_psnr"] - fl["greedy v_b*"]["mean_psnr"])
@@ -186,12 +227,18 @@ def report(
             "vs": best,
             "diff": mean_ci(fl["exact planner"]["mean_psnr"] - fl[best]["mean_psnr"]),
         }
+        rival = max(SWITCH_VS, key=lambda n: row["policies"][n]["mean_psnr"])
+        row["switch_minus_best"] = {
+            "vs": rival,
+            "diff": mean_ci(fl["dwell-switch"]["mean_psnr"] - fl[rival]["mean_psnr"]),
+        }
         pb = params.replace(B=b)
         t1 = time.perf_counter()
         bound = np.minimum(psnr_bound(keys, pb), travel_bound(keys, pb))
         row["bound"] = float(bound.mean())
         row["bound_wall_s"] = time.perf_counter() - t1
         row["bound_minus_exact"] = mean_ci(bound - fl["exact planner"]["mean_psnr"])
+        row["bound_minus_switch"] = mean_ci(bound - fl["dwell-switch"]["mean_psnr"])
         row["account"] = {k: float(np.mean(v)) for k, v in fl["exact planner"].pop("account").items()}
         rows.append(row)
         d, ci = row["exact_minus_best"]["diff"]
@@ -217,6 +264,9 @@ def setting(s: dict) -> str:
     if "knobs" in s:
         v, k, m = s["knobs"]
         return f"v_c {v:g}, k* {k:g}, margin {m:g} s"
+    if "switch" in s:
+        v, m = s["switch"]
+        return f"v_c {v:g}, margin {m:g} s, k* by simulation"
     return "plan" if s["v_b"] is None else f"{s['v_b']:g}"
 
 
@@ -238,14 +288,17 @@ def markdown(r: dict) -> str:
     lines += [
         "",
         "| B (kHz) | exact planner − best of planner, greedy-dwell, TSP-dwell (paired 95 % CI) | "
-        "bound − exact planner | planner − greedy at v_b* |",
-        "|---|---|---|---|",
+        "dwell-switch − best of those and the exact planner | bound − exact planner | bound − dwell-switch "
+        "| planner − greedy at v_b* |",
+        "|---|---|---|---|---|---|",
     ]
     for row in r["rows"]:
-        e, b, g = row["exact_minus_best"], row["bound_minus_exact"], row["planner_minus_tuned_greedy"]
+        e, w, g = row["exact_minus_best"], row["switch_minus_best"], row["planner_minus_tuned_greedy"]
+        b, bw = row["bound_minus_exact"], row["bound_minus_switch"]
         lines.append(
             f"| {row['B'] / 1e3:g} | {e['diff'][0]:+.2f} ± {e['diff'][1]:.2f} (vs {e['vs']}) | "
-            f"{b[0]:.2f} ± {b[1]:.2f} | {g[0]:+.2f} ± {g[1]:.2f} |"
+            f"{w['diff'][0]:+.2f} ± {w['diff'][1]:.2f} (vs {w['vs']}) | "
+            f"{b[0]:.2f} ± {b[1]:.2f} | {bw[0]:.2f} ± {bw[1]:.2f} | {g[0]:+.2f} ± {g[1]:.2f} |"
         )
     lines += [
         "",

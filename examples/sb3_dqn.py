@@ -72,7 +72,7 @@ def dwell_knobs(params, B: float, validation: int) -> dict:
     tuned = shipped_tuned_speeds(shipped_folder(), B)
     if tuned is None or any(n not in tuned for n in DWELL_POLICIES):
         print(f"tuning the dwell knobs at {B / 1e3:g} kHz on {validation} validation layouts")
-        t = tune(params, (B,), validation)
+        t = tune(params, (B,), validation, switch=False)
         tuned = {n: tuple(t[n]["knobs"][0]) for n in DWELL_POLICIES}
     return {n: tuple(float(x) for x in tuned[n]) for n in DWELL_POLICIES}
 

@@ -53,7 +53,7 @@ def start(policy: Policy, state: EnvState, policy_state: Any, params: EnvParams)
     return Carry(state, observe(policy, state, params), policy_state, zero, zero)
 
 
-def _slot(
+def scan_body(
     policy: Policy, params: EnvParams, trace: bool
 ) -> Callable[[Carry, jax.Array], tuple[Carry, dict[str, jax.Array] | None]]:
     """The scan body of one slot: ``engine.slot`` and the slot's trace entry."""
@@ -75,7 +75,7 @@ def finish(policy: Policy, c: Carry, params: EnvParams) -> dict:
     return metrics
 
 
-def _check_valid(metrics: dict[str, jax.Array]) -> None:
+def check_valid(metrics: dict[str, jax.Array]) -> None:
     if not isinstance(metrics["valid"], jax.core.Tracer) and not bool(jnp.all(metrics["valid"])):
         raise ValueError(
             "the simulation left float32 (a rate, power or return overflowed): check the parameters' scale"
@@ -99,7 +99,10 @@ def episode(
     state = reset_state(k_reset, params) if init_state is None else init_state
     # unroll=2 lets XLA fuse across two slots: ~15 % faster on CPU (docs/performance.md)
     c, tr = jax.lax.scan(
-        _slot(policy, params, trace), start(policy, state, policy_state, params), delay_draws(k_steps, params), unroll=2
+        scan_body(policy, params, trace),
+        start(policy, state, policy_state, params),
+        delay_draws(k_steps, params),
+        unroll=2,
     )
     return finish(policy, c, params), tr
 
@@ -142,7 +145,7 @@ def rollout(
     if keys.ndim != 2 and not jax.dtypes.issubdtype(keys.dtype, jax.dtypes.prng_key):
         raise ValueError(f"keys must be a batch of PRNG keys (E, 2), got shape {keys.shape}")
     metrics, tr = _rollout(as_policy(policy), keys, params, policy_state, init_state, trace, state_axes)
-    _check_valid(metrics)
+    check_valid(metrics)
     return metrics, tr
 
 
@@ -151,7 +154,7 @@ def _segment(
     policy: Policy, carry: Carry, draws: jax.Array, params: EnvParams, trace: bool
 ) -> tuple[Carry, dict[str, jax.Array] | None]:
     """The slots of ``draws`` (E, R) from ``carry``: the body of :func:`episode` over R slots."""
-    return jax.vmap(lambda c, u: jax.lax.scan(_slot(policy, params, trace), c, u))(carry, draws)
+    return jax.vmap(lambda c, u: jax.lax.scan(scan_body(policy, params, trace), c, u))(carry, draws)
 
 
 def rollout_replanned(
@@ -181,5 +184,5 @@ def rollout_replanned(
         c, tr = _segment(policy, c, draws[:, t0 : t0 + int(every)], params, trace)
         parts.append(tr)
     metrics = jax.vmap(lambda c: finish(policy, c, params))(c)
-    _check_valid(metrics)
+    check_valid(metrics)
     return metrics, (jax.tree.map(lambda *x: jnp.concatenate(x, axis=1), *parts) if trace else None)

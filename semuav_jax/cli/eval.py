@@ -269,6 +269,7 @@ def _animate(args: argparse.Namespace) -> int:
             (PANEL_B,),
             args.grid["validation_layouts"],
             workers=args.workers,
+            switch=False,
         )
         tuned = {n: t[n]["v_star"][0] for n in ("greedy", "tsp")} | {
             n: tuple(t[n]["knobs"][0]) for n in ("greedy-dwell", "tsp-dwell")

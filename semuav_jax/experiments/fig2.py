@@ -116,7 +116,7 @@ def run(
     keys = episode_keys(TEST_SEED, grid["layouts"])
     tuned = stage(
         "v_b* on validation layouts",
-        lambda: tune(params, sweep_B, grid["validation_layouts"], workers=workers),
+        lambda: tune(params, sweep_B, grid["validation_layouts"], workers=workers, switch=False),
         describe=lambda t: ": " + ", ".join(f"{n} {t[n]['v_star']}" for n in ("greedy", "tsp")),
     )
     # the TSP order does not depend on B: solved once

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from baselines.report import BANDWIDTHS, flights, setting, summary, tune
+from baselines.report import BANDWIDTHS, flights, reference_summary, setting, summary, tune
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.network import q_network
@@ -36,7 +36,12 @@ REFERENCES = (
     "greedy-dwell",
     "tsp-dwell",
 )  # the fixed rules, tuned: margins that must be positive
-MARGINS = (*REFERENCES, "planner", "exact planner")  # every reference the agent is compared with, paired
+MARGINS = (
+    *REFERENCES,
+    "dwell-switch",
+    "planner",
+    "exact planner",
+)  # every reference the agent is compared with, paired
 
 
 def _header(names: Iterable[str]) -> str:
@@ -71,10 +76,7 @@ def compare(
         agent = [{k: v[s, j] for k, v in per_seed.items()} for s in range(seeds)]
         row = {
             "B": float(b),
-            "references": {
-                k: {"v_b": m["v_b"], **({"knobs": m["knobs"]} if "knobs" in m else {}), **summary(m)}
-                for k, m in ref.items()
-            },
+            "references": {k: reference_summary(m) for k, m in ref.items()},
             "seeds": [],
         }
         for m in agent:

@@ -1,0 +1,50 @@
+"""The agent with search at the BS (docs/ddqn.md, docs/model.md eq. 7.15): one-step rollout policy
+improvement of the greedy agent. Every ``every`` slots the BS simulates, from the current state to
+the end of the mission with fresh delay draws, the agent itself and each of its actions sent for
+the next ``every`` slots and the agent after it, and sends the best; the Q-network is the base
+policy of every simulation (``semuav_jax.lookahead``)."""
+
+from __future__ import annotations
+
+from functools import cache
+from typing import TYPE_CHECKING, Any
+
+import jax
+import jax.numpy as jnp
+
+from semuav_jax.agents.network import num_actions, q_network
+from semuav_jax.agents.policy import greedy_policy
+from semuav_jax.lookahead import Forced, Switching, forced, rollout_switching
+
+if TYPE_CHECKING:
+    from semuav_jax.agents.config import DDQNConfig
+    from semuav_jax.agents.network import QNetwork
+    from semuav_jax.params import EnvParams
+
+SEARCH_EVERY = 8  # slots (4 s) between two decisions
+SEARCH_SAMPLES = 1  # delay draws per candidate and decision
+
+
+@cache
+def search_switching(network: QNetwork, config: DDQNConfig, every: int, samples: int, A: int) -> Switching:
+    """Candidates: c = 0 the agent; c = 1 .. A its action c - 1 for ``every`` slots, then the agent."""
+    policy = forced(greedy_policy(network, config))
+
+    def candidate(net: Any, _: Any, c: jax.Array) -> Forced:
+        return Forced(net, jnp.maximum(c - 1, 0).astype(jnp.int32), jnp.where(c > 0, every, 0).astype(jnp.int32))
+
+    return Switching(policy, candidate, A + 1, every, samples)
+
+
+def search_metrics(
+    net: Any,
+    config: DDQNConfig,
+    keys: jax.Array,
+    params: EnvParams,
+    every: int = SEARCH_EVERY,
+    samples: int = SEARCH_SAMPLES,
+) -> tuple[dict[str, jax.Array], jax.Array]:
+    """Per-episode metrics of the agent with search (weights ``net`` of one seed) and the (E,
+    decisions) chosen candidates (0: the agent's own action)."""
+    sw = search_switching(q_network(params, config), config, every, samples, num_actions(params, config))
+    return rollout_switching(sw, keys, params, net)

@@ -1,0 +1,142 @@
+"""Decisions by simulation at the BS (docs/model.md eq. 7.15): every ``every`` slots, simulate each
+of C candidate policy states of one policy from the current state to the end of the mission, with
+delays drawn afresh (the BS knows the model, not the future delays), and follow the best until the
+next decision. With one candidate that is the base policy itself this is rollout policy
+improvement; with several fixed rules it is policy switching (parallel rollout): in expectation
+never worse than the best candidate followed throughout.
+
+The candidates are ``candidate(shared, per_episode, c)`` for c = 0 .. C-1: ``shared`` (e.g. network
+weights) is the same for every episode, ``per_episode`` (e.g. a TSP order) has an episode axis.
+Episodes are those of ``rollout`` for the same keys (layouts and delays), so results pair with
+every other policy's.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from functools import partial
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from semuav_jax.engine import Policy, as_policy, observe
+from semuav_jax.env import EnvState, reset_state
+from semuav_jax.params import EnvParams, validate_params
+from semuav_jax.rollout import check_valid, delay_draws, episode, finish, scan_body, start
+
+ARRIVAL_DB = 100.0  # a simulated flight scores this much more for arriving, and again for SLACK_S to spare
+SLACK_S = 2.0  # s: the simulated delays are not the flight's, so a plan that arrives just in time is a risk
+LOOKAHEAD_STREAM = 0x5E4C  # fold_in tag of the lookahead's own delay draws (never the episode's)
+
+
+class Switching(NamedTuple):
+    """Decisions by simulation over the candidates of ``policy`` (hashable: a static argument of jit)."""
+
+    policy: Policy
+    candidate: Callable  # (shared, per_episode, c) -> policy state of candidate c
+    count: int  # C candidates
+    every: int  # slots between two decisions
+    samples: int = 1  # delay draws each candidate is simulated with (the same for every candidate)
+
+
+def check_switching(sw: Switching) -> Switching:
+    for name, x in (("count", sw.count), ("every", sw.every), ("samples", sw.samples)):
+        if not isinstance(x, int) or isinstance(x, bool) or x < 1:
+            raise ValueError(f"{name} must be an integer >= 1, got {x!r}")
+    return sw._replace(policy=as_policy(sw.policy))
+
+
+def score(metrics: dict[str, jax.Array], params: EnvParams) -> jax.Array:
+    """What a decision maximizes: arrival with ``SLACK_S`` to spare, then arrival, then the mean PSNR."""
+    spare = metrics["arrived"] & (metrics["mission_time"] <= params.K * params.tau - SLACK_S)
+    return metrics["mean_psnr"] + ARRIVAL_DB * (metrics["arrived"].astype(jnp.float32) + spare)
+
+
+def choose(
+    sw: Switching, state: EnvState, shared: Any, per_episode: Any, key: jax.Array, params: EnvParams
+) -> tuple[jax.Array, jax.Array]:
+    """Eq. 7.15: (index of the best candidate, (C,) mean scores) from ``state``, each candidate
+    simulated to the end with the same ``samples`` delay draws."""
+    keys = jax.random.split(key, sw.samples)
+
+    def value(c: jax.Array) -> jax.Array:
+        ps = sw.candidate(shared, per_episode, c)
+        runs = jax.vmap(lambda k: episode(sw.policy, k, params, ps, init_state=state)[0])(keys)
+        return jnp.mean(score(runs, params))
+
+    values = jax.vmap(value)(jnp.arange(sw.count))
+    return jnp.argmax(values), values
+
+
+def switching_episode(
+    sw: Switching, key: jax.Array, params: EnvParams, shared: Any, per_episode: Any
+) -> tuple[dict[str, jax.Array], jax.Array]:
+    """One episode (the layout and delays of ``rollout.episode`` for ``key``) with a decision every
+    ``sw.every`` slots; returns (metrics, (decisions,) chosen candidate indices)."""
+    k_reset, k_steps = jax.random.split(key)
+    k_look = jax.random.fold_in(key, LOOKAHEAD_STREAM)
+    periods = -(-params.K // sw.every)
+    u = delay_draws(k_steps, params)
+    u = jnp.concatenate([u, jnp.zeros(periods * sw.every - params.K)]).reshape(periods, sw.every)
+    state = reset_state(k_reset, params)
+
+    def period(c: Any, xs: tuple[jax.Array, jax.Array]) -> tuple[Any, jax.Array]:
+        draws, i = xs
+        best, _ = choose(sw, c.state, shared, per_episode, jax.random.fold_in(k_look, i), params)
+        c = c._replace(policy_state=sw.candidate(shared, per_episode, best), obs=observe(sw.policy, c.state, params))
+        c, _ = jax.lax.scan(scan_body(sw.policy, params, False), c, draws)  # slots after t = K are frozen
+        return c, best
+
+    c0 = start(sw.policy, state, sw.candidate(shared, per_episode, jnp.zeros((), jnp.int32)), params)
+    c, chosen = jax.lax.scan(period, c0, (u, jnp.arange(periods)))
+    return finish(sw.policy, c, params), chosen
+
+
+@partial(jax.jit, static_argnames=("sw",))
+def _rollout_switching(
+    sw: Switching, keys: jax.Array, params: EnvParams, shared: Any, per_episode: Any
+) -> tuple[dict[str, jax.Array], jax.Array]:
+    return jax.vmap(lambda k, pe: switching_episode(sw, k, params, shared, pe), in_axes=(0, 0))(keys, per_episode)
+
+
+def rollout_switching(
+    sw: Switching, keys: jax.Array, params: EnvParams, shared: Any = None, per_episode: Any = None
+) -> tuple[dict[str, jax.Array], jax.Array]:
+    """``len(keys)`` episodes with decisions by simulation, in one jitted, vmapped program: (metrics
+    as ``rollout`` returns them, (E, decisions) chosen candidates). ``per_episode`` has a leading
+    episode axis (None: nothing per episode)."""
+    validate_params(params)
+    sw = check_switching(sw)
+    keys = jnp.asarray(keys)
+    if per_episode is None:
+        per_episode = jnp.zeros(len(keys))
+    metrics, chosen = _rollout_switching(sw, keys, params, shared, per_episode)
+    check_valid(metrics)
+    return metrics, chosen
+
+
+@struct.dataclass
+class Forced:
+    """Policy state of :func:`forced`: the inner policy's state, the action to send and for how many
+    more slots."""
+
+    inner: Any
+    action: jax.Array
+    left: jax.Array
+
+
+@functools.cache
+def forced(policy: Policy) -> Policy:
+    """``policy`` with a forced first action: ``Forced(inner, a, n)`` sends ``a`` for n slots (through
+    the policy's shield), then follows ``policy``: the candidates of one-step rollout improvement."""
+    policy = as_policy(policy)
+
+    def act(ps: Forced, obs: Any, params: EnvParams) -> tuple[jax.Array, Forced]:
+        a, inner = policy.act(ps.inner, obs, params)
+        sent = jnp.where(ps.left > 0, jnp.asarray(ps.action, jnp.asarray(a).dtype), a)
+        return sent, Forced(inner, ps.action, ps.left - 1)
+
+    return Policy(act=act, mode=policy.mode, observe=policy.observe, shield=policy.shield)
