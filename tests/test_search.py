@@ -1,0 +1,44 @@
+"""The agent with search at the BS (semuav_jax/agents/search.py, docs/model.md eq. 7.15): with no
+alternative it is the greedy agent; a forced candidate is the agent's action for ``every`` slots."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from semuav_jax.agents.config import DDQNConfig
+from semuav_jax.agents.evaluate import evaluate_agent
+from semuav_jax.agents.network import q_network
+from semuav_jax.agents.policy import input_size
+from semuav_jax.agents.search import search_metrics, search_switching
+from semuav_jax.lookahead import rollout_switching
+from semuav_jax.params import make_params
+
+CFG = DDQNConfig(hidden=(16,), actions="waypoint", shield_margin=2.0)
+
+
+def _agent(curves):
+    params = make_params(curves, B=25e3, K=60)
+    network = q_network(params, CFG)
+    net = network.init(jax.random.key(1), jnp.zeros((input_size(params, CFG),)))
+    return params, network, net
+
+
+def test_with_only_the_agent_as_candidate_it_is_the_greedy_agent(curves):
+    params, network, net = _agent(curves)
+    keys = jax.random.split(jax.random.PRNGKey(4), 4)
+    m, chosen = rollout_switching(search_switching(network, CFG, 8, 1, 0), keys, params, net)
+    ref = evaluate_agent(network, net, CFG, keys, params)
+    for k in ("mean_psnr", "arrived", "mission_time", "shield_share"):
+        np.testing.assert_allclose(np.asarray(m[k]), ref[k], rtol=1e-6, err_msg=k)
+    assert np.all(np.asarray(chosen) == 0)
+
+
+def test_search_candidates_and_their_choices(curves):
+    params, network, net = _agent(curves)
+    sw = search_switching(network, CFG, 8, 1, 16)
+    own, third = sw.candidate(net, None, jnp.int32(0)), sw.candidate(net, None, jnp.int32(3))
+    assert (int(own.left), int(third.action), int(third.left)) == (0, 2, 8)
+    keys = jax.random.split(jax.random.PRNGKey(5), 3)
+    m, chosen = search_metrics(net, CFG, keys, params, every=8)
+    assert np.asarray(chosen).shape == (3, 8) and 0 <= np.asarray(chosen).min() and np.asarray(chosen).max() <= 16
+    assert np.all(np.isfinite(np.asarray(m["mean_psnr"])))
