@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 from jax.typing import ArrayLike
 
-from semuav_jax.control import approach_speed, home_command, speed_command
+from semuav_jax.control import STOP_BRAKE, approach_speed, home_command, speed_command
 from semuav_jax.params import EnvParams
 
 if TYPE_CHECKING:
@@ -39,7 +39,7 @@ def action_to_accel(action: ArrayLike, params: EnvParams) -> jax.Array:
 
 # ---------------------------------------------------------------- waypoint actions (eq. 6.2)
 
-ACTION_MODES = ("table", "waypoint")  # eq. 6.1, eq. 6.2
+ACTION_MODES = ("table", "waypoint", "dwell")  # eq. 6.1, eq. 6.2, eq. 6.3
 
 TARGETS = 3  # the nearest unfinished devices a waypoint action can aim at
 SPEEDS = (0.0, 6.0, 12.0, 18.0, 25.0)  # m/s; 0 = fly over the device and hover there (eq. 7.3)
@@ -76,13 +76,38 @@ def waypoint_accel(action: ArrayLike, state: EnvState, params: EnvParams) -> jax
     return jnp.where(go, to_device, home)
 
 
+# ---------------------------------------------------------------- dwell actions (eq. 6.3)
+
+DWELL_K = (16.0, 32.0, 48.0, 64.0, 96.0, 128.0)  # symbols: "stay until k" of the dwell actions
+DWELL_SPEED = 25.0  # m/s: their cruise speed, that of the tuned dwell rules
+NUM_DWELL_ACTIONS = NUM_WAYPOINT_ACTIONS + len(DWELL_K)
+
+
+def dwell_accel(action: ArrayLike, state: EnvState, params: EnvParams) -> jax.Array:
+    """Eq. 6.3: the waypoint actions of eq. 6.2, then for i < len(DWELL_K) the action HOME + 1 + i:
+    cruise at DWELL_SPEED to the nearest device with fewer than DWELL_K[i] symbols and come to rest
+    over it (eq. 7.3 with STOP_BRAKE); home when every device has that many. Sent slot after slot,
+    it is greedy-dwell with k* = DWELL_K[i] (without its time test: the BS's shield sends HOME)."""
+    i = jnp.clip(action - NUM_WAYPOINT_ACTIONS, 0, len(DWELL_K) - 1)
+    short = state.m < jnp.asarray(DWELL_K)[i] - 1e-3
+    d = jnp.linalg.norm(state.dev_pos - state.q, axis=-1)
+    n = jnp.argmin(jnp.where(short, d, jnp.inf))
+    speed = approach_speed(d[n], DWELL_SPEED, params, brake=STOP_BRAKE)
+    to_device = speed_command(state.q, state.v, state.dev_pos[n], speed, params)
+    stay = jnp.where(jnp.any(short), to_device, home_command(state.q, state.v, params.v_max, params))
+    return jnp.where(action < NUM_WAYPOINT_ACTIONS, waypoint_accel(action, state, params), stay)
+
+
 def num_actions(mode: str, params: EnvParams) -> int:
-    """How many discrete actions the action mode ``mode`` has (eq. 6.1: levels^2; eq. 6.2: NUM_WAYPOINT_ACTIONS)."""
-    return NUM_WAYPOINT_ACTIONS if mode == "waypoint" else params.levels * params.levels
+    """How many discrete actions the action mode ``mode`` has (eq. 6.1: levels^2; eq. 6.2:
+    NUM_WAYPOINT_ACTIONS; eq. 6.3: NUM_DWELL_ACTIONS)."""
+    return {"waypoint": NUM_WAYPOINT_ACTIONS, "dwell": NUM_DWELL_ACTIONS}.get(mode, params.levels * params.levels)
 
 
 def to_accel(mode: str, action: ArrayLike, state: EnvState, params: EnvParams) -> jax.Array:
-    """The acceleration of discrete ``action`` in the action mode ``mode`` (static): eq. 6.1 or eq. 6.2."""
+    """The acceleration of discrete ``action`` in the action mode ``mode`` (static): eq. 6.1, 6.2 or 6.3."""
     if mode == "waypoint":
         return waypoint_accel(action, state, params)
+    if mode == "dwell":
+        return dwell_accel(action, state, params)
     return action_to_accel(action, params)

@@ -1,6 +1,8 @@
 """The agent with search at the BS (semuav_jax/agents/search.py, docs/model.md eq. 7.15): with no
 alternative it is the greedy agent; a forced candidate is the agent's action for ``every`` slots."""
 
+from pathlib import Path
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -12,6 +14,8 @@ from semuav_jax.agents.policy import input_size
 from semuav_jax.agents.search import search_metrics, search_switching
 from semuav_jax.lookahead import rollout_switching
 from semuav_jax.params import make_params
+
+ROOT = Path(__file__).resolve().parents[1]
 
 CFG = DDQNConfig(hidden=(16,), actions="waypoint", shield_margin=2.0)
 
@@ -42,3 +46,24 @@ def test_search_candidates_and_their_choices(curves):
     m, chosen = search_metrics(net, CFG, keys, params, every=8)
     assert np.asarray(chosen).shape == (3, 8) and 0 <= np.asarray(chosen).min() and np.asarray(chosen).max() <= 16
     assert np.all(np.isfinite(np.asarray(m["mean_psnr"])))
+
+
+def test_the_search_comparison_needs_the_runs_dwell_tuning(tmp_path):
+    """compare_search reads the dwell knobs that the run's eval.json chose on validation layouts:
+    without them (or with too few layouts) it stops with one line before any simulation."""
+    import json
+    import shutil
+
+    import pytest
+
+    from semuav_jax.experiments.search import compare_search
+
+    folder = tmp_path / "agent"
+    shutil.copytree(ROOT / "semuav_jax" / "data" / "agent", folder)
+    r = json.loads((folder / "eval.json").read_text())
+    r["tuning"].pop("dwell-switch", None)
+    (folder / "eval.json").write_text(json.dumps(r))
+    with pytest.raises(ValueError, match="has no dwell tuning"):
+        compare_search(folder, episodes=4)
+    with pytest.raises(ValueError, match="episodes must be >= 2"):
+        compare_search(folder, episodes=1)

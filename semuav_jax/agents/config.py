@@ -46,7 +46,9 @@ class DDQNConfig:
     sorted_devices: bool = option(True, "table actions: sort device blocks nearest first and add tanh offsets")
     shield_margin: float | None = option(2.0, "seconds of slack of the BS's return-home shield; none: no shield")
     actions: str = option(
-        "waypoint", "waypoint (eq. 6.2: device, speed or hover, home) or table (the paper's 9 accelerations)"
+        "waypoint",
+        "waypoint (eq. 6.2: device, speed or hover, home), dwell (eq. 6.3: those and stay-until-k over the "
+        "nearest device) or table (the paper's 9 accelerations)",
     )
     bandwidth_range: tuple | None = option(
         (4e3, 45e3),

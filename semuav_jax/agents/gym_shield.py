@@ -26,7 +26,7 @@ if TYPE_CHECKING:
 
 @partial(jax.jit, static_argnames="mode")
 def _sent(action: ArrayLike, state: EnvState, params: EnvParams, margin: float, mode: str) -> jax.Array:
-    return (waypoint_shield if mode == "waypoint" else shield)(action, state, params, margin)
+    return (shield if mode == "table" else waypoint_shield)(action, state, params, margin)
 
 
 _sent_batch = jax.jit(jax.vmap(_sent, (0, 0, None, None, None)), static_argnums=4)

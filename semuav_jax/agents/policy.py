@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 
 def agent_input(state: EnvState, params: EnvParams, config: DDQNConfig) -> jax.Array:
     """The Q-network's input for one ``EnvState`` (``agents/features.py``)."""
-    if config.actions == "waypoint":
+    if config.actions != "table":  # waypoint and dwell actions (eqs. 6.2-6.3)
         return waypoint_features(state, params)
     obs = observation(state, params)
     return table_features(obs) if config.sorted_devices else obs
@@ -43,7 +43,7 @@ def input_size(params: EnvParams, config: DDQNConfig) -> int:
 def agent_shield(config: DDQNConfig) -> Callable:
     """``(action, state, params) -> action sent``: the BS's shield for the agent's action mode
     (no change when ``config.shield_margin`` is None)."""
-    fn = waypoint_shield if config.actions == "waypoint" else shield
+    fn = shield if config.actions == "table" else waypoint_shield
     return lambda action, state, params: fn(action, state, params, config.shield_margin)
 
 

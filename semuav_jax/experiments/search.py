@@ -1,0 +1,148 @@
+"""The agent with search at the BS against the reactive agent, TSP-dwell and dwell-switch
+(docs/ddqn.md, "The agent with search"): every training seed, with and without search, on the same
+first ``episodes`` test layouts (``keys.TEST_SEED``) as the two dwell references at the knobs the
+run's eval.json chose on validation layouts. Margins are per-episode paired differences; across
+seeds, the mean of the seeds' means with its t interval. No seed is selected.
+
+    python -m semuav_jax.experiments.search RUN_FOLDER [--episodes 100] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from baselines.dwell import dwell_metrics, tsp_dwell
+from baselines.evaluate import tsp_ranks
+from baselines.report import BANDWIDTHS, switch_metrics
+from semuav_jax.agents.evaluate import seed_metrics
+from semuav_jax.agents.network import q_network
+from semuav_jax.agents.runs import EVAL_FILE, load_run
+from semuav_jax.agents.search import SEARCH_EVERY, search_metrics
+from semuav_jax.io import atomic_write
+from semuav_jax.keys import TEST_SEED, episode_keys
+from semuav_jax.sharding import map_episodes
+from semuav_jax.stats import mean_ci, pm
+
+VERSUS = ("agent", "tsp-dwell", "dwell-switch")
+
+
+def compare_search(
+    folder: str | os.PathLike,
+    episodes: int = 100,
+    bandwidths: Sequence[float] = BANDWIDTHS,
+    every: int = SEARCH_EVERY,
+    log: Callable[[str], None] = print,
+) -> dict:
+    """Every number of the table (JSON-ready); the dwell knobs come from ``folder``'s eval.json."""
+    if episodes < 2:
+        raise ValueError(f"episodes must be >= 2 (an interval needs two), got {episodes}")
+    run, nets = load_run(folder)
+    try:
+        saved = json.loads((Path(folder) / EVAL_FILE).read_text())
+        tuning = saved["tuning"]
+        knobs = {
+            float(row["B"]): (tuning["tsp-dwell"]["knobs"][j], tuning["dwell-switch"]["switch"][j])
+            for j, row in enumerate(saved["rows"])
+        }
+    except (OSError, KeyError, ValueError, TypeError) as e:
+        raise ValueError(
+            f"{folder}/{EVAL_FILE} has no dwell tuning ({type(e).__name__}: {e}); run "
+            "python -m semuav_jax.experiments.learned on it first"
+        ) from None
+    missing = [b for b in bandwidths if float(b) not in knobs]
+    if missing:
+        raise ValueError(f"{folder}/{EVAL_FILE} has no dwell tuning at B = {missing}")
+    params = run.env_params()
+    network = q_network(params, run.agent)
+    keys = episode_keys(TEST_SEED, episodes)
+    rank = np.asarray(tsp_ranks(keys, params, workers=run.workers))
+    seeds = jax.tree.leaves(nets)[0].shape[0]
+    agent = seed_metrics(network, nets, run.agent, keys, params, bandwidths)
+    rows = []
+    for j, b in enumerate(bandwidths):
+        pb = params.replace(B=float(b))
+        (v_c, k_star, margin), (sv, sm) = knobs[float(b)]
+        refs = {
+            "tsp-dwell": jax.tree.map(np.asarray, dwell_metrics(tsp_dwell, keys, pb, v_c, k_star, margin, rank)),
+            "dwell-switch": switch_metrics(keys, pb, sv, sm, rank),
+        }
+        row = {"B": float(b), "seeds": [], "references": {k: mean_ci(m["mean_psnr"]) for k, m in refs.items()}}
+        for s in range(seeds):
+            net = jax.tree.map(lambda x, s=s: x[s], nets)
+            t0 = time.perf_counter()
+            m = map_episodes(lambda k, net=net, pb=pb: search_metrics(net, run.agent, k, pb, every)[0], keys)
+            own = {k: v[s, j] for k, v in agent.items()}
+            base = {"agent": own["mean_psnr"], **{k: r["mean_psnr"] for k, r in refs.items()}}
+            seed = {
+                "mean_psnr": mean_ci(m["mean_psnr"]),
+                "agent": mean_ci(own["mean_psnr"]),
+                "arrived": float(np.mean(m["arrived"])),
+                "wall_s": time.perf_counter() - t0,
+                **{f"minus {n}": mean_ci(m["mean_psnr"] - base[n]) for n in VERSUS},
+            }
+            row["seeds"].append(seed)
+            log(
+                f"B = {b / 1e3:g} kHz, seed {s}: search {seed['mean_psnr'][0]:.2f} dB, agent {seed['agent'][0]:.2f}, "
+                + ", ".join(f"− {n} {seed['minus ' + n][0]:+.2f}" for n in VERSUS)
+                + f" ({seed['wall_s']:.0f} s)"
+            )
+        row["search"] = {k: mean_ci([x[k][0] for x in row["seeds"]]) for k in ("mean_psnr", "agent")} | {
+            f"minus {n}": mean_ci([x[f"minus {n}"][0] for x in row["seeds"]]) for n in VERSUS
+        }
+        rows.append(row)
+    return {"episodes": episodes, "test_seed": TEST_SEED, "every": every, "seeds": seeds, "rows": rows}
+
+
+def markdown(r: dict) -> str:
+    head = " | ".join(f"search − {n}" for n in VERSUS)
+    lines = [
+        f"First {r['episodes']} test layouts (seed {r['test_seed']}); a decision every {r['every']} slots; "
+        f"{r['seeds']} seeds, each paired per layout; across seeds: mean of the seeds' means ± t interval.",
+        "",
+        f"| B (kHz) | seed | agent with search (dB) | agent (dB) | {head} | s |",
+        "|---" * (5 + len(VERSUS)) + "|",
+    ]
+    for row in r["rows"]:
+        for i, s in enumerate(row["seeds"]):
+            cells = [f"{s['minus ' + n][0]:+.2f} {pm(s['minus ' + n][1])}" for n in VERSUS]
+            lines.append(
+                f"| {row['B'] / 1e3:g} | {i} | {s['mean_psnr'][0]:.2f} | {s['agent'][0]:.2f} | "
+                + " | ".join(cells)
+                + f" | {s['wall_s']:.0f} |"
+            )
+        a = row["search"]
+        cells = [f"{a['minus ' + n][0]:+.2f} {pm(a['minus ' + n][1])}" for n in VERSUS]
+        lines.append(
+            f"| {row['B'] / 1e3:g} | mean | {a['mean_psnr'][0]:.2f} {pm(a['mean_psnr'][1])} | "
+            f"{a['agent'][0]:.2f} | " + " | ".join(cells) + " | |"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("folder", help="a finished train.py run folder with its eval.json")
+    ap.add_argument("--episodes", type=int, default=100, help="test layouts (the first of keys.TEST_SEED)")
+    ap.add_argument("--every", type=int, default=SEARCH_EVERY, help="slots between two decisions")
+    ap.add_argument("--json", help="write the numbers here (atomically)")
+    args = ap.parse_args(argv)
+    try:
+        r = compare_search(args.folder, args.episodes, every=args.every)
+    except ValueError as e:
+        ap.error(str(e))
+    print(markdown(r))
+    if args.json:
+        atomic_write(args.json, json.dumps(r, indent=1).encode())
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
