@@ -4,7 +4,7 @@ import json
 import textwrap
 
 import pytest
-from conftest import GRID
+from conftest import GRID, TRAIN_TINY
 from multiprocess import ROOT, run, single
 
 
@@ -156,28 +156,7 @@ def test_train_on_2_processes_writes_the_weights_of_1(tmp_path, curves):
     from semuav_jax.curves import save_curves
 
     c = str(save_curves(tmp_path / "curves.npz", curves, {"source": "synthetic"}))
-    cmd = [
-        str(ROOT / "train.py"),
-        "--curves",
-        c,
-        "--seeds",
-        "3",
-        "--num-envs",
-        "4",
-        "--steps-per-chunk",
-        "5",
-        "--total-steps",
-        "80",
-        "--learning-starts",
-        "32",
-        "--batch-size",
-        "8",
-        "--segments",
-        "2",
-        "--eval-episodes",
-        "0",
-        "--out",
-    ]
+    cmd = [str(ROOT / "train.py"), *TRAIN_TINY, "--curves", c, "--seeds", "3", "--out"]
     one = single([*cmd, str(tmp_path / "one")])
     assert one.returncode == 0, one.stderr[-2000:]
     codes, texts = run([*cmd, str(tmp_path / "two")], 2, limit_s=600)
