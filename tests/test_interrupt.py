@@ -28,11 +28,16 @@ def test_a_dropped_keyboard_interrupt_still_stops_at_the_next_step(capsys):
             steps.append(i)
         return 0
 
-    assert interruptible(run, [], "rerun it") == 130
-    assert steps == [0, 1, 2]
-    assert "interrupted; rerun it" in capsys.readouterr().err
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
-    assert interruptible(lambda argv: 0, [], "") == 0  # the flag does not outlive its command
+    # as in a foreground process: a test run in the background inherits SIGINT ignored
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        assert interruptible(run, [], "rerun it") == 130
+        assert steps == [0, 1, 2]
+        assert "interrupted; rerun it" in capsys.readouterr().err
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        assert interruptible(lambda argv: 0, [], "") == 0  # the flag does not outlive its command
+    finally:
+        signal.signal(signal.SIGINT, before)
 
 
 @pytest.mark.slow
