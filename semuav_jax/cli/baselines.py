@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from baselines.report import BANDWIDTHS, check_bandwidth, markdown, report
+from baselines.report import BANDWIDTHS, check_bandwidth, report
+from baselines.report_table import markdown
 from semuav_jax import distributed
 from semuav_jax.curves import load_curves
 from semuav_jax.io import atomic_write, check_writable_folder

@@ -16,7 +16,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from baselines.report import BANDWIDTHS, flights, reference_summary, setting, summary, tune
+from baselines.report import BANDWIDTHS, flights, reference_summary, summary, tune
+from baselines.report_table import setting
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.network import q_network
