@@ -16,6 +16,14 @@ def setting(s: dict) -> str:
     return "plan" if s["v_b"] is None else f"{s['v_b']:g}"
 
 
+def reference_line(B: float, name: str, s: dict) -> str:
+    """A reference's table row: bandwidth, name, setting, mean PSNR ± CI, coverage, arrival."""
+    return (
+        f"| {B / 1e3:g} | {name} | {setting(s)} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | "
+        f"{s['coverage']:.2f} | {100 * s['arrived']:.1f} % |"
+    )
+
+
 def markdown(r: dict) -> str:
     lines = [
         f"{r['episodes']} test layouts (seed {r['test_seed']}); v_b* and dwell knobs from {r['tuning']['episodes']} "
@@ -26,10 +34,7 @@ def markdown(r: dict) -> str:
     ]
     for row in r["rows"]:
         for name, s in row["policies"].items():
-            lines.append(
-                f"| {row['B'] / 1e3:g} | {name} | {setting(s)} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | "
-                f"{s['coverage']:.2f} | {100 * s['arrived']:.1f} % | {s['unused_s']:.1f} |"
-            )
+            lines.append(reference_line(row["B"], name, s) + f" {s['unused_s']:.1f} |")
         lines.append(f"| {row['B'] / 1e3:g} | bound (no policy that arrives exceeds) | | {row['bound']:.2f} | | | |")
     lines += [
         "",

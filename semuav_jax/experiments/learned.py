@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from baselines.report import BANDWIDTHS, flights, reference_summary, summary, tune
-from baselines.report_table import setting
+from baselines.report_table import reference_line
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.network import q_network
@@ -157,10 +157,7 @@ def markdown(r: dict) -> str:
     ]
     for row in r["rows"]:
         for name, s in row["references"].items():
-            lines.append(
-                f"| {row['B'] / 1e3:g} | {name} | {setting(s)} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | "
-                f"{s['coverage']:.2f} | {100 * s['arrived']:.1f} % |"
-            )
+            lines.append(reference_line(row["B"], name, s))
     return "\n".join(lines)
 
 
