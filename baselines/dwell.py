@@ -25,7 +25,7 @@ import numpy.typing as npt
 from flax import struct
 from jax.typing import ArrayLike
 
-from semuav_jax.control import STOP_BRAKE, approach_speed, home_command, speed_command, time_via
+from semuav_jax.control import rest_command, time_via
 from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import rollout
 
@@ -63,11 +63,7 @@ def candidates(ps: DwellState, s: EnvState, params: EnvParams) -> jax.Array:
 
 def dwell_command(score: jax.Array, ps: DwellState, s: EnvState, params: EnvParams) -> jax.Array:
     """Eq. 7.10: the acceleration that rests over the candidate of lowest ``score``, else flies home."""
-    cand = candidates(ps, s, params)
-    i = jnp.argmin(jnp.where(cand, score, jnp.inf))
-    dist = jnp.linalg.norm(s.dev_pos[i] - s.q)
-    to_dev = speed_command(s.q, s.v, s.dev_pos[i], approach_speed(dist, ps.v_c, params, STOP_BRAKE), params)
-    return jnp.where(jnp.any(cand), to_dev, home_command(s.q, s.v, ps.v_c, params))
+    return rest_command(s.q, s.v, s.dev_pos, score, candidates(ps, s, params), ps.v_c, ps.v_c, params)
 
 
 def greedy_dwell(ps: DwellState, s: EnvState, params: EnvParams) -> tuple[jax.Array, DwellState]:

@@ -52,6 +52,12 @@ SWITCH_MARGINS = (-2.0, 0.0)  # s: dwell-switch's candidates' margin, chosen per
 SWITCH_TUNING = 200  # validation layouts that choose it (each costs ~200 simulated episodes)
 
 
+def best_arriving(psnr: np.ndarray, arrived: np.ndarray) -> np.ndarray:
+    """Per bandwidth (rows), the setting (column) of best mean PSNR among those arriving in
+    >= ``ARRIVAL_MIN`` of the validation layouts."""
+    return np.argmax(np.where(arrived >= ARRIVAL_MIN, psnr, -np.inf), axis=1)
+
+
 def tune(
     params: EnvParams,
     bandwidths: Sequence[float] = BANDWIDTHS,
@@ -68,13 +74,13 @@ def tune(
     for name in TUNED:
         m = sweep(name, keys, params, v_b=grid, B=bandwidths, rank=rank)
         psnr, arrived = m["mean_psnr"].mean(-1), m["arrived"].mean(-1)
-        best = np.argmax(np.where(arrived >= ARRIVAL_MIN, psnr, -np.inf), axis=1)
+        best = best_arriving(psnr, arrived)
         out[name] = {"v_star": [float(grid[i]) for i in best], "mean_psnr": psnr.tolist(), "arrived": arrived.tolist()}
     points = grid_points(*DWELL_GRID.values())
     for name in DWELL_POLICIES:
         m = dwell_sweep(name, keys, params, *DWELL_GRID.values(), B=bandwidths, rank=rank)
         psnr, arrived = m["mean_psnr"].mean(-1), m["arrived"].mean(-1)
-        best = np.argmax(np.where(arrived >= ARRIVAL_MIN, psnr, -np.inf), axis=1)
+        best = best_arriving(psnr, arrived)
         out[name] = {"knobs": [points[i] for i in best], "mean_psnr": psnr.tolist(), "arrived": arrived.tolist()}
     if not switch:
         return out
@@ -88,7 +94,7 @@ def tune(
     ]
     psnr = np.array([[m["mean_psnr"].mean() for m in row] for row in grid])
     arrived = np.array([[m["arrived"].mean() for m in row] for row in grid])
-    best = np.argmax(np.where(arrived >= ARRIVAL_MIN, psnr, -np.inf), axis=1)
+    best = best_arriving(psnr, arrived)
     out["dwell-switch"] = {
         "switch": [[out["tsp-dwell"]["knobs"][j][0], SWITCH_MARGINS[i]] for j, i in enumerate(best)],
         "episodes": n,

@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 from jax.typing import ArrayLike
 
-from semuav_jax.control import STOP_BRAKE, approach_speed, home_command, speed_command
+from semuav_jax.control import approach_speed, home_command, rest_command, speed_command
 from semuav_jax.params import EnvParams
 
 if TYPE_CHECKING:
@@ -91,10 +91,7 @@ def dwell_accel(action: ArrayLike, state: EnvState, params: EnvParams) -> jax.Ar
     i = jnp.clip(action - NUM_WAYPOINT_ACTIONS, 0, len(DWELL_K) - 1)
     short = state.m < jnp.asarray(DWELL_K)[i] - 1e-3
     d = jnp.linalg.norm(state.dev_pos - state.q, axis=-1)
-    n = jnp.argmin(jnp.where(short, d, jnp.inf))
-    speed = approach_speed(d[n], DWELL_SPEED, params, brake=STOP_BRAKE)
-    to_device = speed_command(state.q, state.v, state.dev_pos[n], speed, params)
-    stay = jnp.where(jnp.any(short), to_device, home_command(state.q, state.v, params.v_max, params))
+    stay = rest_command(state.q, state.v, state.dev_pos, d, short, DWELL_SPEED, params.v_max, params)
     return jnp.where(action < NUM_WAYPOINT_ACTIONS, waypoint_accel(action, state, params), stay)
 
 

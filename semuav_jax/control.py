@@ -5,7 +5,8 @@ the planner and the DDQN's return-home shield.
   never faster towards an airspace limit than the UAV can still brake (eq. 7.2);
 - :func:`approach_speed` is the speed from which braking with ``BRAKE`` a_max stops at a point (eq. 7.3);
 - :func:`time_to_pass` and :func:`time_home` are conservative flight times (eqs. 7.4-7.5) used by
-  the feasibility tests: turning the velocity, drifting while turning, cruising and braking.
+  the feasibility tests: turning the velocity, drifting while turning, cruising and braking;
+- :func:`rest_command` brings the UAV to rest over a chosen device (eqs. 6.3, 7.10).
 """
 
 from __future__ import annotations
@@ -117,3 +118,22 @@ def home_command(q: ArrayLike, v: ArrayLike, speed: ArrayLike, params: EnvParams
     """Eq. 7.1 aimed at q_fin with :func:`approach_speed` (``speed`` far away, braking near q_fin)."""
     dist = jnp.linalg.norm(params.q_fin - q)
     return speed_command(q, v, params.q_fin, approach_speed(dist, speed, params), params)
+
+
+def rest_command(
+    q: ArrayLike,
+    v: ArrayLike,
+    dev_pos: ArrayLike,
+    score: ArrayLike,
+    mask: ArrayLike,
+    cruise: ArrayLike,
+    home_speed: ArrayLike,
+    params: EnvParams,
+) -> jax.Array:
+    """Come to rest over the device of lowest ``score`` among ``mask`` (eq. 7.1 at ``cruise``,
+    braking by eq. 7.3 with ``STOP_BRAKE``), or fly home at ``home_speed`` when ``mask`` is empty:
+    the dwell rules (eq. 7.10) and the dwell actions (eq. 6.3)."""
+    i = jnp.argmin(jnp.where(mask, score, jnp.inf))
+    dist = jnp.linalg.norm(dev_pos[i] - q)
+    to_dev = speed_command(q, v, dev_pos[i], approach_speed(dist, cruise, params, STOP_BRAKE), params)
+    return jnp.where(jnp.any(mask), to_dev, home_command(q, v, home_speed, params))
