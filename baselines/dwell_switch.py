@@ -61,9 +61,11 @@ def dwell_switch_metrics(
     k_star: ArrayLike = SWITCH_K,
     every: int = SWITCH_EVERY,
     samples: int = SWITCH_SAMPLES,
-) -> tuple[dict[str, jax.Array], jax.Array]:
-    """Per-episode metrics and (E, decisions) chosen candidates (rows of :func:`knob_table`)."""
+    trace: bool = False,
+) -> tuple[dict[str, jax.Array], jax.Array, dict[str, jax.Array] | None]:
+    """Per-episode metrics, (E, decisions) chosen candidates (rows of :func:`knob_table`) and, with
+    ``trace``, the flights' trace (``lookahead.rollout_switching``)."""
     check_knobs(v_c, k_star, margin, params)
     table = knob_table(v_c, margin, k_star)
     sw = switching(every, samples, int(table.shape[0]))
-    return rollout_switching(sw, keys, params, table, jnp.asarray(rank, jnp.int32))
+    return rollout_switching(sw, keys, params, table, jnp.asarray(rank, jnp.int32), trace)

@@ -1,7 +1,8 @@
 """The reference table of docs/baselines.md: greedy and TSP at the paper's 8.9 m/s and at their
 tuned speed v_b*, greedy-dwell and TSP-dwell at their tuned knobs, dwell-switch (those rules with
 k* chosen by simulation during the flight), the open-loop planner, the exact receding-horizon
-planner and the certified bound, per bandwidth.
+planner, plan-switch (the exact planner's every re-plan checked against the dwell rules by
+simulation) and the certified bound, per bandwidth.
 
 ``semuav-baselines`` or ``python -m baselines.report [--episodes 1000] [--validation-episodes 500]
 [--json out.json]`` (the command line: ``semuav_jax.cli.baselines``).
@@ -22,7 +23,7 @@ from typing import TYPE_CHECKING
 import jax
 import numpy as np
 
-from baselines import receding
+from baselines import plan_switch, receding
 from baselines.bound import psnr_bound
 from baselines.dwell import DWELL_POLICIES, dwell_metrics, dwell_sweep, grid_points
 from baselines.dwell_switch import dwell_switch_metrics
@@ -124,7 +125,8 @@ def flights(
     the paper's speed and at their tuned v_b* (``tuned`` from :func:`tune`), and the planner.
     ``rank`` (TSP ranks of ``keys``) and ``plans`` (one PlanState per bandwidth) are solved here
     unless given. ``account``: the exact planner's flights also measured against the bound's
-    relaxation (``travel_bound.flight_account``)."""
+    relaxation (``travel_bound.flight_account``), and so are plan-switch's (at dwell-switch's v_c and
+    margin, when ``tuned`` has them)."""
     rank = tsp_ranks(keys, params, workers=workers) if rank is None else rank
     speeds = sorted({DEFAULT_V_B, *[v for n in TUNED for v in tuned[n]["v_star"]]})
     swept = {n: sweep(n, keys, params, v_b=speeds, B=bandwidths, rank=rank) for n in TUNED}
@@ -156,6 +158,12 @@ def flights(
         row["exact planner"] = {"v_b": None, **m, "wall_s": time.perf_counter() - t1}
         if account:
             row["exact planner"]["account"] = flight_account(jax.tree.map(np.asarray, tr), keys, pb)
+        if "dwell-switch" in tuned:
+            t1 = time.perf_counter()
+            m, _, tr = plan_switch.fly(keys, pb, v_c, margin, np.asarray(rank), workers=workers, trace=account)
+            row["plan-switch"] = {"v_b": None, "switch": [v_c, margin], **m, "wall_s": time.perf_counter() - t1}
+            if account:
+                row["plan-switch"]["account"] = flight_account(jax.tree.map(np.asarray, tr), keys, pb)
         out.append(row)
     return out
 
@@ -175,8 +183,9 @@ def summary(m: dict, T_s: float | None = None) -> dict:
     } | ({} if T_s is None else {"unused_s": float(np.mean(T_s - np.asarray(m["mission_time"], np.float64)))})
 
 
-EXACT_VS = ("planner", "greedy-dwell", "tsp-dwell")  # the exact planner's target: the best of these + 0.5 dB
+EXACT_VS = ("planner", "greedy-dwell", "tsp-dwell")  # the new planners' target: the best of these + 0.5 dB
 SWITCH_VS = (*EXACT_VS, "exact planner")  # dwell-switch against the best of these
+PLAN_SWITCH_VS = (*SWITCH_VS, "dwell-switch")  # plan-switch against the best of these
 
 
 def reference_summary(m: dict, T_s: float | None = None) -> dict:
@@ -224,7 +233,7 @@ def report(
             "B": float(b),
             "policies": {k: reference_summary(m, T_s) for k, m in fl.items()},
         }
-        for name in ("planner", "exact planner", "dwell-switch"):
+        for name in ("planner", "exact planner", "dwell-switch", "plan-switch"):
             row["policies"][name]["wall_s"] = fl[name]["wall_s"]
             row["policies"][name]["unserved"] = float(np.mean(params.N - np.asarray(fl[name]["coverage"])))
         row["planner_minus_tuned_greedy"] = mean_ci(fl["planner"]["mean_psnr"] - fl["greedy v_b*"]["mean_psnr"])
@@ -233,11 +242,13 @@ def report(
             "vs": best,
             "diff": mean_ci(fl["exact planner"]["mean_psnr"] - fl[best]["mean_psnr"]),
         }
-        rival = max(SWITCH_VS, key=lambda n: row["policies"][n]["mean_psnr"])
-        row["switch_minus_best"] = {
-            "vs": rival,
-            "diff": mean_ci(fl["dwell-switch"]["mean_psnr"] - fl[rival]["mean_psnr"]),
-        }
+        for key, name, versus in (
+            ("switch_minus_best", "dwell-switch", SWITCH_VS),
+            ("plan_switch_minus_best", "plan-switch", PLAN_SWITCH_VS),
+            ("plan_switch_minus_target", "plan-switch", EXACT_VS),
+        ):
+            rival = max(versus, key=lambda n: row["policies"][n]["mean_psnr"])
+            row[key] = {"vs": rival, "diff": mean_ci(fl[name]["mean_psnr"] - fl[rival]["mean_psnr"])}
         pb = params.replace(B=b)
         t1 = time.perf_counter()
         bound = np.minimum(psnr_bound(keys, pb), travel_bound(keys, pb))
@@ -245,13 +256,18 @@ def report(
         row["bound_wall_s"] = time.perf_counter() - t1
         row["bound_minus_exact"] = mean_ci(bound - fl["exact planner"]["mean_psnr"])
         row["bound_minus_switch"] = mean_ci(bound - fl["dwell-switch"]["mean_psnr"])
-        row["account"] = {k: float(np.mean(v)) for k, v in fl["exact planner"].pop("account").items()}
+        row["bound_minus_plan_switch"] = mean_ci(bound - fl["plan-switch"]["mean_psnr"])
+        row["account"] = {
+            name: {k: float(np.mean(v)) for k, v in fl[name].pop("account").items()}
+            for name in ("exact planner", "plan-switch")
+        }
         rows.append(row)
-        d, ci = row["exact_minus_best"]["diff"]
+        d, ci = row["plan_switch_minus_target"]["diff"]
         log(
-            f"B = {b / 1e3:g} kHz: exact planner {row['policies']['exact planner']['mean_psnr']:.2f} dB "
-            f"({d:+.2f} ± {ci:.2f} vs {best}), bound {row['bound']:.2f} dB; planner {fl['planner']['wall_s']:.0f} s, "
-            f"exact planner {fl['exact planner']['wall_s']:.0f} s, bound {row['bound_wall_s']:.0f} s"
+            f"B = {b / 1e3:g} kHz: plan-switch {row['policies']['plan-switch']['mean_psnr']:.2f} dB "
+            f"({d:+.2f} ± {ci:.2f} vs {row['plan_switch_minus_target']['vs']}), bound {row['bound']:.2f} dB; "
+            f"planner {fl['planner']['wall_s']:.0f} s, exact planner {fl['exact planner']['wall_s']:.0f} s, "
+            f"plan-switch {fl['plan-switch']['wall_s']:.0f} s, bound {row['bound_wall_s']:.0f} s"
         )
     return {
         "episodes": episodes,

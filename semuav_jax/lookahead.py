@@ -72,10 +72,11 @@ def choose(
 
 
 def switching_episode(
-    sw: Switching, key: jax.Array, params: EnvParams, shared: Any, per_episode: Any
-) -> tuple[dict[str, jax.Array], jax.Array]:
+    sw: Switching, key: jax.Array, params: EnvParams, shared: Any, per_episode: Any, trace: bool = False
+) -> tuple[dict[str, jax.Array], jax.Array, dict[str, jax.Array] | None]:
     """One episode (the layout and delays of ``rollout.episode`` for ``key``) with a decision every
-    ``sw.every`` slots; returns (metrics, (decisions,) chosen candidate indices)."""
+    ``sw.every`` slots; returns (metrics, (decisions,) chosen candidate indices, the trace of
+    ``rollout.episode`` when asked)."""
     k_reset, k_steps = jax.random.split(key)
     k_look = jax.random.fold_in(key, LOOKAHEAD_STREAM)
     periods = -(-params.K // sw.every)
@@ -83,39 +84,47 @@ def switching_episode(
     u = jnp.concatenate([u, jnp.zeros(periods * sw.every - params.K)]).reshape(periods, sw.every)
     state = reset_state(k_reset, params)
 
-    def period(c: Any, xs: tuple[jax.Array, jax.Array]) -> tuple[Any, jax.Array]:
+    def period(c: Any, xs: tuple[jax.Array, jax.Array]) -> tuple[Any, tuple[jax.Array, Any]]:
         draws, i = xs
         best, _ = choose(sw, c.state, shared, per_episode, jax.random.fold_in(k_look, i), params)
         c = c._replace(policy_state=sw.candidate(shared, per_episode, best), obs=observe(sw.policy, c.state, params))
-        c, _ = jax.lax.scan(scan_body(sw.policy, params, False), c, draws)  # slots after t = K are frozen
-        return c, best
+        c, tr = jax.lax.scan(scan_body(sw.policy, params, trace), c, draws)  # slots after t = K are frozen
+        return c, (best, tr)
 
     c0 = start(sw.policy, state, sw.candidate(shared, per_episode, jnp.zeros((), jnp.int32)), params)
-    c, chosen = jax.lax.scan(period, c0, (u, jnp.arange(periods)))
-    return finish(sw.policy, c, params), chosen
+    c, (chosen, tr) = jax.lax.scan(period, c0, (u, jnp.arange(periods)))
+    if trace:  # (periods, every, ...) -> the K slots of the episode
+        tr = jax.tree.map(lambda x: x.reshape((periods * sw.every,) + x.shape[2:])[: params.K], tr)
+    return finish(sw.policy, c, params), chosen, tr
 
 
-@partial(jax.jit, static_argnames=("sw",))
+@partial(jax.jit, static_argnames=("sw", "trace"))
 def _rollout_switching(
-    sw: Switching, keys: jax.Array, params: EnvParams, shared: Any, per_episode: Any
-) -> tuple[dict[str, jax.Array], jax.Array]:
-    return jax.vmap(lambda k, pe: switching_episode(sw, k, params, shared, pe), in_axes=(0, 0))(keys, per_episode)
+    sw: Switching, keys: jax.Array, params: EnvParams, shared: Any, per_episode: Any, trace: bool
+) -> tuple[dict[str, jax.Array], jax.Array, dict[str, jax.Array] | None]:
+    run = lambda k, pe: switching_episode(sw, k, params, shared, pe, trace)
+    return jax.vmap(run, in_axes=(0, 0))(keys, per_episode)
 
 
 def rollout_switching(
-    sw: Switching, keys: jax.Array, params: EnvParams, shared: Any = None, per_episode: Any = None
-) -> tuple[dict[str, jax.Array], jax.Array]:
+    sw: Switching,
+    keys: jax.Array,
+    params: EnvParams,
+    shared: Any = None,
+    per_episode: Any = None,
+    trace: bool = False,
+) -> tuple[dict[str, jax.Array], jax.Array, dict[str, jax.Array] | None]:
     """``len(keys)`` episodes with decisions by simulation, in one jitted, vmapped program: (metrics
-    as ``rollout`` returns them, (E, decisions) chosen candidates). ``per_episode`` has a leading
-    episode axis (None: nothing per episode)."""
+    as ``rollout`` returns them, (E, decisions) chosen candidates, with ``trace`` the (E, K, ...)
+    trace of ``rollout``, else None). ``per_episode`` has a leading episode axis (None: nothing per episode)."""
     validate_params(params)
     sw = check_switching(sw)
     keys = jnp.asarray(keys)
     if per_episode is None:
         per_episode = jnp.zeros(len(keys))
-    metrics, chosen = _rollout_switching(sw, keys, params, shared, per_episode)
+    metrics, chosen, tr = _rollout_switching(sw, keys, params, shared, per_episode, trace)
     check_valid(metrics)
-    return metrics, chosen
+    return metrics, chosen, tr
 
 
 @struct.dataclass

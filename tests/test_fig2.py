@@ -58,7 +58,7 @@ def test_reduced_run_properties(reduced):
     assert [row["B"] for row in r["panel_a"]] == [5e3, 25e3] and r["seeds"] == 2
     for row in r["panel_a"]:
         assert row["agent_arrived"] == 1.0  # the shield brings even an untrained agent home
-        for name in ("greedy 8.9", "tsp 8.9", "greedy v_b*", "tsp v_b*", "planner"):
+        for name in ("greedy 8.9", "tsp 8.9", "greedy v_b*", "tsp v_b*", "dwell-switch", "planner"):
             assert row[name]["arrived"] >= 0.99, name
         assert row["planner"]["mean_psnr"][0] > row["greedy 8.9"]["mean_psnr"][0]
     assert set(r["behaviour"]) == {"5 kHz", "25 kHz"}
@@ -73,14 +73,16 @@ def test_reduced_run_properties(reduced):
         "tsp v_b*",
         "greedy-dwell",
         "tsp-dwell",
+        "dwell-switch",
         "planner",
         "exact planner",
+        "plan-switch",
     }
     for p in r["paths"].values():
         np.testing.assert_array_equal(p["q"][0], [0.0, 300.0])
         assert len(p["q"]) == round(p["mission_time"] / 0.5) + 1
     text = fig2.markdown({**r, "paths": None})
-    assert "DDQN − tsp-dwell" in text and "DDQN − exact planner" in text and "speed while a device transmits" in text
+    assert "DDQN − dwell-switch" in text and "DDQN − plan-switch" in text and "speed while a device transmits" in text
 
 
 @pytest.mark.slow

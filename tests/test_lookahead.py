@@ -30,13 +30,18 @@ RANK = np.tile(np.arange(10, dtype=np.int32), (6, 1))
 
 
 def test_one_candidate_is_the_plain_rollout(p, keys):
-    """A single candidate (TSP-dwell at fixed knobs) followed throughout: the episodes of rollout."""
+    """A single candidate (TSP-dwell at fixed knobs) followed throughout: the episodes of rollout,
+    slot for slot (K = 250 is not a multiple of the 16-slot decision period)."""
     table = knob_table(25.0, -2.0, [48.0])[1:]  # the TSP-dwell row only
-    m, chosen = rollout_switching(switching(16, 1, 1), keys, p, table, jnp.asarray(RANK))
-    ref, _ = rollout(tsp_dwell, keys, p, jax.vmap(init_dwell, (None, None, None, 0))(25.0, 48.0, -2.0, RANK))
+    m, chosen, tr = rollout_switching(switching(16, 1, 1), keys, p, table, jnp.asarray(RANK), trace=True)
+    states = jax.vmap(init_dwell, (None, None, None, 0))(25.0, 48.0, -2.0, RANK)
+    ref, ref_tr = rollout(tsp_dwell, keys, p, states, trace=True)
     for k in ("mean_psnr", "arrived", "mission_time", "coverage"):
         np.testing.assert_allclose(np.asarray(m[k]), np.asarray(ref[k]), rtol=1e-6, err_msg=k)
     assert np.all(np.asarray(chosen) == 0)
+    assert jax.tree.map(np.shape, tr) == jax.tree.map(np.shape, ref_tr)
+    for k in ("q", "m", "done"):
+        np.testing.assert_allclose(np.asarray(tr[k]), np.asarray(ref_tr[k]), rtol=1e-6, atol=1e-4, err_msg=k)
 
 
 def test_either_dwell_is_greedy_or_tsp_dwell(p):
@@ -98,8 +103,8 @@ def test_bad_settings_are_one_line_errors(p, keys, change, msg):
 
 
 def test_dwell_switch_is_deterministic_and_checks_its_knobs(p, keys):
-    a, ca = dwell_switch_metrics(keys, p, 25.0, 0.0, RANK)
-    b, cb = dwell_switch_metrics(keys, p, 25.0, 0.0, RANK)
+    a, ca, _ = dwell_switch_metrics(keys, p, 25.0, 0.0, RANK)
+    b, cb, _ = dwell_switch_metrics(keys, p, 25.0, 0.0, RANK)
     np.testing.assert_array_equal(np.asarray(a["mean_psnr"]), np.asarray(b["mean_psnr"]))
     np.testing.assert_array_equal(np.asarray(ca), np.asarray(cb))
     assert np.asarray(ca).shape == (6, 16) and np.asarray(ca).max() < 12
@@ -113,7 +118,7 @@ def test_switching_is_a_pure_function_under_jit_and_vmap(p, keys):
     """The same episodes through an outer jit (traced B) as through the plain call."""
     sw = switching(16, 1, 12)
     table = knob_table(25.0, 0.0)
-    m, _ = rollout_switching(sw, keys, p, table, jnp.asarray(RANK))
+    m, _, _ = rollout_switching(sw, keys, p, table, jnp.asarray(RANK))
     outer = jax.jit(lambda b: rollout_switching(sw, keys, p.replace(B=b), table, jnp.asarray(RANK))[0]["mean_psnr"])
     np.testing.assert_allclose(np.asarray(outer(jnp.float32(25e3))), np.asarray(m["mean_psnr"]), rtol=1e-6)
     assert isinstance(sw, Switching)

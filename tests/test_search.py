@@ -30,7 +30,7 @@ def _agent(curves):
 def test_with_only_the_agent_as_candidate_it_is_the_greedy_agent(curves):
     params, network, net = _agent(curves)
     keys = jax.random.split(jax.random.PRNGKey(4), 4)
-    m, chosen = rollout_switching(search_switching(network, CFG, 8, 1, 0), keys, params, net)
+    m, chosen, _ = rollout_switching(search_switching(network, CFG, 8, 1, 0), keys, params, net)
     ref = evaluate_agent(network, net, CFG, keys, params)
     for k in ("mean_psnr", "arrived", "mission_time", "shield_share"):
         np.testing.assert_allclose(np.asarray(m[k]), ref[k], rtol=1e-6, err_msg=k)
@@ -43,7 +43,7 @@ def test_search_candidates_and_their_choices(curves):
     own, third = sw.candidate(net, None, jnp.int32(0)), sw.candidate(net, None, jnp.int32(3))
     assert (int(own.left), int(third.action), int(third.left)) == (0, 2, 8)
     keys = jax.random.split(jax.random.PRNGKey(5), 3)
-    m, chosen = search_metrics(net, CFG, keys, params, every=8)
+    m, chosen, _ = search_metrics(net, CFG, keys, params, every=8)
     assert np.asarray(chosen).shape == (3, 8) and 0 <= np.asarray(chosen).min() and np.asarray(chosen).max() <= 16
     assert np.all(np.isfinite(np.asarray(m["mean_psnr"])))
 

@@ -6,7 +6,7 @@ import jax
 import numpy as np
 import pytest
 
-from baselines import receding
+from baselines import plan_switch, receding
 from baselines.bound import peak_rate, psnr_bound
 from baselines.dwell import dwell_metrics, greedy_dwell, tsp_dwell
 from baselines.dwell_switch import dwell_switch_metrics
@@ -72,6 +72,7 @@ def test_no_policy_of_ours_exceeds_it(B):
     got.append(np.asarray(run(planner, keys, p, make_plans(keys, p, workers=1))["mean_psnr"]))
     got.append(receding.fly(keys, p, workers=1)[0]["mean_psnr"])
     got.append(np.asarray(dwell_switch_metrics(keys, p, 25.0, -2.0, rank)[0]["mean_psnr"]))
+    got.append(plan_switch.fly(keys, p, 25.0, -2.0, rank, workers=1)[0]["mean_psnr"])
     draws = jax.vmap(random_policy_state, (0, None))(jax.random.split(jax.random.PRNGKey(1), 48), p)
     got.append(np.asarray(rollout(random_policy, keys, p, policy_state=draws)[0]["mean_psnr"]))
     assert np.all(np.stack(got) <= bound)

@@ -43,8 +43,8 @@ def search_metrics(
     params: EnvParams,
     every: int = SEARCH_EVERY,
     samples: int = SEARCH_SAMPLES,
-) -> tuple[dict[str, jax.Array], jax.Array]:
-    """Per-episode metrics of the agent with search (weights ``net`` of one seed) and the (E,
-    decisions) chosen candidates (0: the agent's own action)."""
+) -> tuple[dict[str, jax.Array], jax.Array, None]:
+    """Per-episode metrics of the agent with search (weights ``net`` of one seed), the (E,
+    decisions) chosen candidates (0: the agent's own action) and None (no trace)."""
     sw = search_switching(q_network(params, config), config, every, samples, num_actions(params, config))
     return rollout_switching(sw, keys, params, net)

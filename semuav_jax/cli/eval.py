@@ -1,10 +1,11 @@
 """Reproduce the paper's Fig. 2 into ``results/`` (docs/RESULTS.md).
 
 ``python eval.py --quick``: the shipped agent (the output of ``python train.py``, docs/ddqn.md)
-against greedy and TSP at 8.9 m/s and at their tuned speed and the offline planner, at 4
-bandwidths and 4 speeds on 300 test layouts. ``python eval.py``: trains that agent from scratch
-first (``train.py``'s default, in OUT/agent, resumed if interrupted), then 8 bandwidths and 8
-speeds on 1000 test layouts. ``--agent RUN`` takes a finished ``train.py`` run folder instead.
+against greedy and TSP at 8.9 m/s and at their tuned speed, greedy-dwell and TSP-dwell at their
+tuned knobs, dwell-switch, the open-loop and the exact planner and plan-switch
+(docs/baselines.md), at 4 bandwidths and 4 speeds on 300 test layouts. ``python eval.py``: trains
+that agent from scratch first (``train.py``'s default, in OUT/agent, resumed if interrupted), then
+8 bandwidths and 8 speeds on 1000 test layouts. ``--agent RUN`` takes a finished ``train.py`` run folder instead.
 Writes fig2a/b/c.png and fig2.json (every number, and the speeds and dwell times behind them).
 """
 

@@ -11,8 +11,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from baselines import DEFAULT_V_B, init_state, receding, tsp_ranks
+from baselines import DEFAULT_V_B, init_state, plan_switch, receding, tsp_ranks
 from baselines.dwell import DWELL_POLICIES, init_dwell
+from baselines.dwell_switch import dwell_switch_metrics
 from baselines.planner import PlanState, make_plans, planner
 from baselines.policies import POLICIES
 from semuav_jax.agents.config import DDQNConfig
@@ -64,9 +65,10 @@ def traced_runs(
     plan: PlanState | None = None,
 ) -> dict[str, tuple[dict[str, np.ndarray], dict[str, np.ndarray]]]:
     """Traced rollouts at ``params.B``: each agent seed, greedy and TSP at 8.9 m/s and at v_b*
-    (``tuned_speeds``: name -> v_b*, and the dwell rules' name -> (v_c, k*, margin)), the dwell rules,
-    the planner and the exact planner. ``rank`` (TSP ranks of ``keys``) and ``plan`` (the planner's
-    PlanState at ``params.B``) are solved here unless given.
+    (``tuned_speeds``: name -> v_b*, the dwell rules' name -> (v_c, k*, margin) and, optionally,
+    "dwell-switch" -> (v_c, margin)), the dwell rules, dwell-switch, the planner, the exact
+    planner and (with dwell-switch's knobs) plan-switch. ``rank`` (TSP ranks of ``keys``) and
+    ``plan`` (the planner's PlanState at ``params.B``) are solved here unless given.
     Returns {name: (metrics, trace)}."""
     runs = {}
     for s in range(jax.tree.leaves(nets)[0].shape[0]):
@@ -85,9 +87,17 @@ def traced_runs(
     for name, policy in ((n, f) for n, f in DWELL_POLICIES.items() if n in tuned_speeds):
         states = jax.vmap(init_dwell, (None, None, None, 0))(*tuned_speeds[name], jnp.asarray(ranks["tsp"]))
         runs[name] = rollout(policy, keys, params, states, trace=True)
+    if "dwell-switch" in tuned_speeds:
+        m, _, tr = dwell_switch_metrics(keys, params, *tuned_speeds["dwell-switch"], ranks["tsp"], trace=True)
+        runs["dwell-switch"] = (m, tr)
     plan = make_plans(keys, params, workers=workers) if plan is None else plan
     runs["planner"] = rollout(planner, keys, params, plan, trace=True)
     runs["exact planner"] = receding.fly(keys, params, workers=workers, trace=True)
+    if "dwell-switch" in tuned_speeds:
+        m, _, tr = plan_switch.fly(
+            keys, params, *tuned_speeds["dwell-switch"], ranks["tsp"], workers=workers, trace=True
+        )
+        runs["plan-switch"] = (m, tr)
     return {k: jax.tree.map(np.asarray, v) for k, v in runs.items()}
 
 

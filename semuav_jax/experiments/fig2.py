@@ -2,7 +2,8 @@
 (docs/RESULTS.md).
 
 (a) mean PSNR vs B: the agent (mean over seeds, t interval across seeds), greedy and TSP at 8.9 m/s
-and at v_b*, greedy-dwell and TSP-dwell at their tuned knobs, the open-loop and the exact planner;
+and at v_b*, greedy-dwell and TSP-dwell at their tuned knobs, dwell-switch, the open-loop and the
+exact planner, plan-switch;
 (b) at 25 kHz: greedy and TSP vs their speed v_b, with arrival; the others, at their own speed, as bands;
 (c) the paper layout at 25 kHz: the trajectories, coloured by speed, with each device's dwell.
 
@@ -116,7 +117,7 @@ def run(
     keys = episode_keys(TEST_SEED, grid["layouts"])
     tuned = stage(
         "v_b* on validation layouts",
-        lambda: tune(params, sweep_B, grid["validation_layouts"], workers=workers, switch=False),
+        lambda: tune(params, sweep_B, grid["validation_layouts"], workers=workers),
         describe=lambda t: ": " + ", ".join(f"{n} {t[n]['v_star']}" for n in ("greedy", "tsp")),
     )
     # the TSP order does not depend on B: solved once
@@ -131,7 +132,8 @@ def run(
         for b in sweep_B
     ]
     refs = stage(
-        "references flown (greedy, TSP at 8.9 m/s and v_b*; greedy-dwell, TSP-dwell; both planners)",
+        "references flown (greedy, TSP at 8.9 m/s and v_b*; greedy-dwell, TSP-dwell, dwell-switch; "
+        "the planners, plan-switch)",
         lambda: [  # without the planners' wall times: a saved step holds numbers that do not depend on the load
             {name: {k: v for k, v in m.items() if k != "wall_s"} for name, m in row.items()}
             for row in flights(params, keys, tuned, sweep_B, workers, rank=rank, plans=plans)
@@ -171,9 +173,11 @@ def run(
     out["behaviour"] = {}
     for b in sorted({min(sweep_B), PANEL_B}):
         ib = sweep_B.index(b)
-        tuned_at_b = {n: tuned[n]["v_star"][ib] for n in ("greedy", "tsp")} | {
-            n: tuned[n]["knobs"][ib] for n in DWELL_POLICIES
-        }
+        tuned_at_b = (
+            {n: tuned[n]["v_star"][ib] for n in ("greedy", "tsp")}
+            | {n: tuned[n]["knobs"][ib] for n in DWELL_POLICIES}
+            | {"dwell-switch": tuned["dwell-switch"]["switch"][ib]}
+        )
         at_b = params.replace(B=b)
 
         def measure(at_b: EnvParams = at_b, tuned_at_b: dict = tuned_at_b, ib: int = ib) -> dict:
@@ -216,8 +220,19 @@ def panel_b(keys: jax.Array, params: EnvParams, velocities: Sequence[float], ran
 
 def markdown(r: dict) -> str:
     """The tables of docs/RESULTS.md: panel (a) with the agent's margins, panel (b), and the behaviour at 25 kHz."""
-    refs = ("greedy 8.9", "tsp 8.9", "greedy v_b*", "tsp v_b*", "greedy-dwell", "tsp-dwell", "planner", "exact planner")
-    margins = ("tsp v_b*", "tsp-dwell", "planner", "exact planner")
+    refs = (
+        "greedy 8.9",
+        "tsp 8.9",
+        "greedy v_b*",
+        "tsp v_b*",
+        "greedy-dwell",
+        "tsp-dwell",
+        "dwell-switch",
+        "planner",
+        "exact planner",
+        "plan-switch",
+    )
+    margins = ("tsp v_b*", "tsp-dwell", "dwell-switch", "plan-switch")
     lines = [
         f"{r['layouts']} test layouts (seed {r['test_seed']}); DDQN: mean of {r['seeds']} seeds ± t interval "
         f"across seeds; references ± 95 % interval over layouts; v_b* from {r['validation_layouts']} validation "

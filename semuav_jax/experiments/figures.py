@@ -28,19 +28,25 @@ STYLE = {
     "tsp v_b*": dict(color="C2", marker="^", label="TSP, tuned v_b*"),
     "greedy-dwell": dict(color="C1", marker="v", label="greedy-dwell, tuned"),
     "tsp-dwell": dict(color="C8", marker="P", label="TSP-dwell, tuned"),
+    "dwell-switch": dict(color="C5", marker="X", label="dwell-switch (search over the dwell rules)"),
     "planner": dict(color="C4", marker="D", ls="--", mfc="none", label="open-loop planner"),
     "exact planner": dict(color="C4", marker="D", label="exact planner (receding horizon)"),
+    "plan-switch": dict(color="k", marker="*", ms=9, label="plan-switch (exact planner + dwell rules)"),
 }
-BANDS = ("agent", "greedy-dwell", "tsp-dwell", "planner", "exact planner")  # panel (b): policies with their own speed
+# panel (b): the policies that set their own speed
+BANDS = ("agent", "greedy-dwell", "tsp-dwell", "dwell-switch", "planner", "exact planner", "plan-switch")
 
 
 def fig2a(r: dict, path: str | os.PathLike) -> None:
     """Mean PSNR vs B (left) and devices covered (right): the agent with its t interval across seeds, the
-    baselines at 8.9 m/s and at v_b*, the planner (95 % t intervals over layouts)."""
+    baselines at 8.9 m/s and at v_b*, the dwell rules, dwell-switch, both planners and plan-switch
+    (95 % t intervals over layouts)."""
     rows = r["panel_a"]
     B = np.array([row["B"] for row in rows]) / 1e3
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.2), gridspec_kw={"width_ratios": [3, 2]})
     for name, st in STYLE.items():
+        if name != "agent" and name not in rows[0]:
+            continue  # results written before a reference existed
         if name == "agent":
             y = np.array([row["agent"][0] for row in rows])
             e = np.array([row["agent"][1] for row in rows])
@@ -113,8 +119,20 @@ def fig2b(r: dict, path: str | os.PathLike) -> None:
 def fig2c(paths: dict, params: EnvParams, path: str | os.PathLike) -> None:
     """Trajectories on the paper layout, one panel per policy: the path coloured by speed, each device's
     seconds in range written beside it and drawn as a ring whose size grows with them."""
-    names = [n for n in ("agent", "tsp v_b*", "greedy-dwell", "tsp-dwell", "planner", "exact planner") if n in paths]
-    fig, axes = plt.subplots(2, 3, figsize=(17, 6.3), sharex=True, sharey=True)
+    order = (
+        "agent",
+        "tsp v_b*",
+        "greedy-dwell",
+        "tsp-dwell",
+        "dwell-switch",
+        "planner",
+        "exact planner",
+        "plan-switch",
+    )
+    names = [n for n in order if n in paths]
+    fig, axes = plt.subplots(2, 4, figsize=(21, 6.3), sharex=True, sharey=True)
+    for ax in axes.ravel()[len(names) :]:
+        ax.set_visible(False)
     radius = float(range_radius(params))
     pts = np.concatenate(
         [np.array([[0.0, 0.0], [float(params.Lx), float(params.Ly)]])] + [paths[n]["q"] for n in names]

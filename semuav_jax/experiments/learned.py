@@ -42,6 +42,7 @@ MARGINS = (
     "dwell-switch",
     "planner",
     "exact planner",
+    "plan-switch",
 )  # every reference the agent is compared with, paired
 
 
