@@ -3,8 +3,8 @@ tuned speed v_b*, greedy-dwell and TSP-dwell at their tuned knobs, dwell-switch 
 k* chosen by simulation during the flight), the open-loop planner, the exact receding-horizon
 planner and the certified bound, per bandwidth.
 
-``semuav-baselines`` or ``python -m baselines.report [--episodes 1000] [--validation-episodes 500]
-[--json out.json]`` (the command line: ``semuav_jax.cli.baselines``).
+``semuav-baselines [--episodes 1000] [--validation-episodes 500] [--json out.json]`` (the command
+line: ``semuav_jax.cli.baselines``).
 
 v_b* and the dwell knobs (v_c, k*, margin) are chosen per bandwidth on the validation layouts
 (``keys.VALIDATION_SEED``) from ``SPEED_GRID`` and ``DWELL_GRID`` as the best mean PSNR among the
@@ -263,9 +263,3 @@ def report(
         "rows": rows,
         "wall_s": time.perf_counter() - t0,
     }
-
-
-if __name__ == "__main__":  # ``python -m baselines.report``: the command lives in semuav_jax.cli.baselines
-    from semuav_jax.cli.baselines import main
-
-    main()
