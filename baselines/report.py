@@ -4,8 +4,8 @@ k* chosen by simulation during the flight), the open-loop planner, the exact rec
 planner, plan-switch (the exact planner's every re-plan checked against the dwell rules by
 simulation) and the certified bound, per bandwidth.
 
-``semuav-baselines`` or ``python -m baselines.report [--episodes 1000] [--validation-episodes 500]
-[--json out.json]`` (the command line: ``semuav_jax.cli.baselines``).
+``semuav-baselines [--episodes 1000] [--validation-episodes 500] [--json out.json]`` (the command
+line: ``semuav_jax.cli.baselines``).
 
 v_b* and the dwell knobs (v_c, k*, margin) are chosen per bandwidth on the validation layouts
 (``keys.VALIDATION_SEED``) from ``SPEED_GRID`` and ``DWELL_GRID`` as the best mean PSNR among the
@@ -279,9 +279,3 @@ def report(
         "rows": rows,
         "wall_s": time.perf_counter() - t0,
     }
-
-
-if __name__ == "__main__":  # ``python -m baselines.report``: the command lives in semuav_jax.cli.baselines
-    from semuav_jax.cli.baselines import main
-
-    main()

@@ -14,7 +14,7 @@ from semuav_jax.control import approach_speed, home_command, rest_command, speed
 from semuav_jax.params import EnvParams
 
 if TYPE_CHECKING:
-    from semuav_jax.env import EnvState
+    from semuav_jax.state import EnvState
 
 
 def axis_levels(params: EnvParams) -> jax.Array:

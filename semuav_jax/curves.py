@@ -72,7 +72,7 @@ def load_curves(path: str | os.PathLike | None = None) -> PSNRCurves:
     """Load a curves file; the shipped DeepJSCC curves when ``path`` is None."""
     path = Path(path) if path is not None else default_curves_path()
     if not path.is_file():
-        hint = " (regenerate with `python -m semuav_jax.jscc curves`)" if path == default_curves_path() else ""
+        hint = " (regenerate with `semuav-jscc curves`)" if path == default_curves_path() else ""
         raise FileNotFoundError(f"PSNR curves file not found: {path}{hint}")
     try:
         with np.load(path, allow_pickle=False) as f:

@@ -4,6 +4,7 @@
 ``SemUAVEnv.step_env`` maps a discrete action index onto it (the paper's table, eq. 6.1, or the
 waypoint actions, eq. 6.2) and gymnax's ``Environment.step`` adds the auto-reset. Everything is
 pure and jittable. ``make`` builds the environment and its parameters by id, like ``gymnax.make``.
+``EnvState`` is defined in ``semuav_jax.state`` (the parts of a slot read it) and handed on here.
 """
 
 from __future__ import annotations
@@ -13,7 +14,6 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
-from flax import struct
 from gymnax.environments import environment, spaces
 from jax.typing import ArrayLike
 
@@ -22,27 +22,9 @@ from semuav_jax.actions import ACTION_MODES, num_actions, to_accel
 from semuav_jax.observation import obs_bounds, obs_size, observation
 from semuav_jax.params import EnvParams, make_params, params_valid, validate_params
 from semuav_jax.reward import reward
+from semuav_jax.state import EnvState
 
 ENV_ID = "SemUAV-v0"
-
-
-@struct.dataclass
-class EnvState:
-    """State at the end of slot t (MODEL.md section 3)."""
-
-    q: jax.Array  # (2,) UAV ground position, m
-    v: jax.Array  # (2,) velocity, m/s
-    a_prev: jax.Array  # (2,) last command a[t] (clipped), still acting during the next delay
-    t: jax.Array  # slot index, int32
-    m: jax.Array  # (N,) symbols received, real-valued
-    phi: jax.Array  # (N,) PSNR of each device's image, dB
-    x: jax.Array  # (N,) bool, transmitted during slot t
-    dev_pos: jax.Array  # (N, 2) device positions
-    dev_img: jax.Array  # (N,) image index per device
-    delay: jax.Array  # command delay of slot t, s
-    arrived: jax.Array  # bool
-    done: jax.Array  # bool: arrived or t == K
-    ret: jax.Array  # return accumulated so far
 
 
 def initial_state(dev_pos: ArrayLike, dev_img: ArrayLike, params: EnvParams) -> EnvState:

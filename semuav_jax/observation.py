@@ -10,7 +10,7 @@ import jax.numpy as jnp
 from semuav_jax.params import EnvParams
 
 if TYPE_CHECKING:
-    from semuav_jax.env import EnvState
+    from semuav_jax.state import EnvState
 
 GLOBAL_FEATURES = 9  # q (2), v (2), a (2), time left (1), q_fin - q (2)
 DEVICE_FEATURES = 5  # p_n - q (2), m_n / M, x_n, phi_n normalized

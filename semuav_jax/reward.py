@@ -11,7 +11,7 @@ from jax.typing import ArrayLike
 from semuav_jax.params import EnvParams
 
 if TYPE_CHECKING:
-    from semuav_jax.env import EnvState
+    from semuav_jax.state import EnvState
 
 
 def distance_to_goal(q: ArrayLike, params: EnvParams) -> jax.Array:

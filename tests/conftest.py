@@ -1,4 +1,9 @@
-"""Shared fixtures: synthetic, monotone PSNR curves so simulator tests do not depend on DeepJSCC."""
+"""Shared fixtures: synthetic, monotone PSNR curves so simulator tests do not depend on DeepJSCC;
+the options of a train.py run of seconds, and a child process that Ctrl-C reaches."""
+
+import signal
+import subprocess
+from pathlib import Path
 
 import pytest
 
@@ -6,6 +11,8 @@ from semuav_jax.curves import synthetic_curves
 from semuav_jax.params import make_params
 
 __all__ = ["synthetic_curves"]
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="session")
@@ -26,27 +33,38 @@ def params(curves):
     return make_params(curves)
 
 
-# train.py options of a run that takes seconds (synthetic curves, 80 env steps, no evaluation)
-TRAIN_TINY = [
-    "--curves",
-    "synthetic",
-    "--num-envs",
-    "4",
-    "--steps-per-chunk",
-    "5",
-    "--total-steps",
-    "80",
-    "--learning-starts",
-    "32",
-    "--batch-size",
-    "8",
-    "--segments",
-    "2",
-    "--eval-episodes",
-    "0",
-    "--workers",
-    "1",
-]
+# train.py's options of a run that takes seconds (80 env steps)
+TRAIN_RUN = {
+    "num_envs": 4,
+    "steps_per_chunk": 5,
+    "total_steps": 80,
+    "learning_starts": 32,
+    "batch_size": 8,
+    "segments": 2,
+}
+
+
+def train_options(**options: object) -> list[str]:
+    """train.py's options of TRAIN_RUN with ``options`` (``eval_episodes=4``) changed or added, in that order."""
+    return [a for k, v in (TRAIN_RUN | options).items() for a in (f"--{k.replace('_', '-')}", str(v))]
+
+
+# the run on synthetic curves without an evaluation
+TRAIN_TINY = ["--curves", "synthetic", *train_options(eval_episodes=0, workers=1)]
+
+
+def start_interruptible(cmd: list[str]) -> subprocess.Popen:
+    """``cmd`` started in the repository's root with its output piped (text) and SIGINT at its
+    default, as in a foreground shell: a test run in the background inherits SIGINT ignored, and
+    Python then installs no KeyboardInterrupt handler."""
+    return subprocess.Popen(
+        cmd,
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
 
 
 # a semuav-sweep grid of seconds (2 bandwidths x 2 policies x 2 seeds), for test_distributed_results and _faults

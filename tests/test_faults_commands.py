@@ -7,7 +7,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from conftest import TRAIN_TINY
+from conftest import TRAIN_TINY, start_interruptible
 from faults_helpers import ROOT, _err
 
 
@@ -141,15 +141,7 @@ def test_ctrl_c_before_the_first_checkpoint_then_resume_finishes(tmp_path):
     import time
 
     out = tmp_path / "r"
-    p = subprocess.Popen(
-        [sys.executable, str(ROOT / "train.py"), *TRAIN_TINY, "--out", str(out)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        cwd=ROOT,
-        # a test run in the background inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-    )
+    p = start_interruptible([sys.executable, str(ROOT / "train.py"), *TRAIN_TINY, "--out", str(out)])
     try:
         deadline = time.time() + 600
         while not (out / "config.json").exists() and time.time() < deadline and p.poll() is None:

@@ -73,21 +73,6 @@ def test_evaluate_refuses_another_n(agent, curves):
         evaluate(agent, p5, episodes=4)
 
 
-@pytest.mark.slow
-def test_evaluation_in_chunks_equals_one_program(agent, monkeypatch):
-    from semuav_jax.agents import evaluate as ev
-    from semuav_jax.keys import episode_keys
-
-    nets = jax.tree.map(lambda w: w[None], agent.weights)
-    keys = episode_keys(0, 4)
-    args = (agent.network, nets, agent.config, keys, agent.params, (25e3,))
-    whole = ev.seed_metrics(*args)
-    monkeypatch.setattr(ev, "MAX_RUNS", 2)  # two chunks of 2 episodes
-    chunked = ev.seed_metrics(*args)
-    for k in whole:
-        np.testing.assert_array_equal(whole[k], chunked[k])
-
-
 # ----------------------------------------------------------------- saved steps of eval.py
 
 

@@ -108,7 +108,7 @@ def test_baselines_report_checks_options_and_paths_first(tmp_path, argv, msg):
     argv = [str(tmp_path / a) if a.startswith(("DIR", "FILE")) else a for a in argv]
     extra = [] if "--episodes" in argv else ["--episodes", "2"]
     res = subprocess.run(
-        [sys.executable, "-m", "baselines.report", *argv, *extra],
+        [sys.executable, "-m", "semuav_jax.cli.baselines", *argv, *extra],
         capture_output=True,
         text=True,
         check=False,

@@ -3,11 +3,11 @@ the KeyboardInterrupt (raised while a garbage-collector callback runs)."""
 
 import os
 import signal
-import subprocess
 import sys
 
 import pytest
-from test_train import ROOT, TINY, _train
+from conftest import ROOT, start_interruptible, train_options
+from test_train import _train
 
 from semuav_jax.cli import interruptible, stop_if_asked
 
@@ -47,15 +47,9 @@ def test_sigint_stops_with_one_line_and_resumes(curves_file, tmp_path):
     import time
 
     out = tmp_path / "r"
-    longer = [*TINY[:4], "--total-steps", "2000", *TINY[6:10], "--segments", "10", "--eval-episodes", "0"]
-    # a test run in the background inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler
-    proc = subprocess.Popen(
-        [sys.executable, str(ROOT / "train.py"), "--curves", curves_file, "--out", str(out), *longer],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    longer = train_options(total_steps=2000, segments=10, eval_episodes=0)
+    proc = start_interruptible(
+        [sys.executable, str(ROOT / "train.py"), "--curves", curves_file, "--out", str(out), *longer]
     )
     deadline = time.time() + 300
     while not (out / "checkpoint.msgpack").exists() and time.time() < deadline:

@@ -67,3 +67,23 @@ def test_the_search_comparison_needs_the_runs_dwell_tuning(tmp_path):
         compare_search(folder, episodes=4)
     with pytest.raises(ValueError, match="episodes must be >= 2"):
         compare_search(folder, episodes=1)
+
+
+def test_the_search_command_says_what_to_run_first(tmp_path, capsys):
+    """``semuav-search`` on a run folder without the dwell tuning: exit 2 and one line naming semuav-compare."""
+    import json
+    import shutil
+
+    import pytest
+
+    from semuav_jax.cli.search import main
+
+    folder = tmp_path / "agent"
+    shutil.copytree(ROOT / "semuav_jax" / "data" / "agent", folder)
+    r = json.loads((folder / "eval.json").read_text())
+    r.pop("tuning")
+    (folder / "eval.json").write_text(json.dumps(r))
+    with pytest.raises(SystemExit) as e:
+        main([str(folder), "--episodes", "4"])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and "has no dwell tuning" in err and "run semuav-compare on it first" in err, err

@@ -4,33 +4,14 @@ import csv
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
+from conftest import ROOT, train_options
 
 from semuav_jax.agents.config import DDQNConfig
 
-ROOT = Path(__file__).resolve().parents[1]
-TINY = [
-    "--num-envs",
-    "4",
-    "--steps-per-chunk",
-    "5",
-    "--total-steps",
-    "80",
-    "--learning-starts",
-    "32",
-    "--batch-size",
-    "8",
-    "--segments",
-    "2",
-    "--eval-episodes",
-    "4",
-    "--validation-episodes",
-    "4",
-    "--workers",
-    "1",
-]
+TINY = train_options(eval_episodes=4, validation_episodes=4, workers=1)  # with an evaluation of seconds
+NO_EVAL = train_options(eval_episodes=0)
 
 
 def _train(*args):
@@ -85,9 +66,7 @@ def test_options_come_from_the_config_and_the_preset(tmp_path, curves_file):
         "16",
         "--shield-margin",
         "none",
-        *TINY[:-6],
-        "--eval-episodes",
-        "0",
+        *NO_EVAL,
     )
     assert res.returncode == 0, res.stderr
     cfg = json.loads((out / "config.json").read_text())
@@ -100,12 +79,7 @@ def test_options_come_from_the_config_and_the_preset(tmp_path, curves_file):
 def test_same_seed_same_weights(run_dir, curves_file, tmp_path):
     """A second fresh run of the same command writes bit-identical weights (and a different seed does not)."""
     same, other = tmp_path / "same", tmp_path / "other"
-    assert (
-        _train(
-            "--curves", curves_file, "--out", str(same), "--seeds", "2", *TINY[:-6], "--eval-episodes", "0"
-        ).returncode
-        == 0
-    )
+    assert _train("--curves", curves_file, "--out", str(same), "--seeds", "2", *NO_EVAL).returncode == 0
     assert (
         _train(
             "--curves",
@@ -116,9 +90,7 @@ def test_same_seed_same_weights(run_dir, curves_file, tmp_path):
             "2",
             "--seed",
             "1",
-            *TINY[:-6],
-            "--eval-episodes",
-            "0",
+            *NO_EVAL,
         ).returncode
         == 0
     )
@@ -219,9 +191,9 @@ def test_overwrite_deletes_only_run_files(curves_file, tmp_path):
     res = _train("--curves", curves_file, "--out", str(out), *TINY, "--overwrite")
     assert res.returncode == 2 and (out / "config.json").read_text() == "{}"
     (out / "config.json").unlink()
-    assert _train("--curves", curves_file, "--out", str(out), *TINY[:-6], "--eval-episodes", "0").returncode == 0
+    assert _train("--curves", curves_file, "--out", str(out), *NO_EVAL).returncode == 0
     (out / "notes.txt").write_text("mine")
-    res = _train("--curves", curves_file, "--out", str(out), *TINY[:-6], "--eval-episodes", "0", "--overwrite")
+    res = _train("--curves", curves_file, "--out", str(out), *NO_EVAL, "--overwrite")
     assert res.returncode == 0, res.stderr
     assert (out / "model.msgpack").is_file() and (out / "notes.txt").read_text() == "mine"
 

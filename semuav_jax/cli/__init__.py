@@ -1,7 +1,7 @@
 """The command-line programs, one module each: ``semuav-train`` (train.py), ``semuav-eval`` (eval.py),
-``semuav-sweep`` (sweep.py), ``semuav-jscc`` (jscc.py), ``semuav-baselines`` (baselines.py) and
-``semuav-compare`` (compare.py). The root ``train.py`` and ``eval.py``, ``python -m semuav_jax.jscc``,
-``python -m baselines.report`` and ``python -m semuav_jax.experiments.learned`` are shims for them.
+``semuav-sweep`` (sweep.py), ``semuav-jscc`` (jscc.py), ``semuav-baselines`` (baselines.py),
+``semuav-compare`` (compare.py) and ``semuav-search`` (search.py); ``python -m semuav_jax.cli.NAME``
+runs the same. The root ``train.py`` and ``eval.py`` are shims for the first two.
 The top floor: free to import every other part of the package; nothing below imports it."""
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The reference table of the baselines per bandwidth (docs/baselines.md), printed as Markdown.
 
-``semuav-baselines`` or ``python -m baselines.report``: greedy and TSP at 8.9 m/s and at v_b*,
+``semuav-baselines`` (or ``python -m semuav_jax.cli.baselines``): greedy and TSP at 8.9 m/s and at v_b*,
 greedy-dwell and TSP-dwell, both planners and the certified bound, computed by ``baselines.report``;
 ``--json`` also saves every number.
 """

@@ -1,4 +1,4 @@
-"""``semuav-compare`` (``python -m semuav_jax.experiments.learned``): a finished train.py run's seeds
+"""``semuav-compare`` (or ``python -m semuav_jax.cli.compare``): a finished train.py run's seeds
 against the tuned baselines and both planners (``semuav_jax.experiments.learned``, docs/ddqn.md)."""
 
 from __future__ import annotations

@@ -1,11 +1,11 @@
 """Command line for the DeepJSCC of MODEL.md section 9: train, curves, figure.
 
-``semuav-jscc`` or ``python -m semuav_jax.jscc``:
+``semuav-jscc`` (or ``python -m semuav_jax.cli.jscc``):
 
-python -m semuav_jax.jscc train --out runs/jscc --steps 3600
-python -m semuav_jax.jscc curves --ckpt runs/jscc --out semuav_jax/data/psnr_curves.npz \
+semuav-jscc train --out runs/jscc --steps 3600
+semuav-jscc curves --ckpt runs/jscc --out semuav_jax/data/psnr_curves.npz \
     --model-out semuav_jax/data/deepjscc.msgpack
-python -m semuav_jax.jscc figure --out docs/figures/deepjscc.png
+semuav-jscc figure --out docs/figures/deepjscc.png
 """
 
 from __future__ import annotations
@@ -66,7 +66,7 @@ def _figure(a: argparse.Namespace) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m semuav_jax.jscc", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="semuav-jscc", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="cmd", required=True)
     t = sub.add_parser("train", help="train (or resume) the DeepJSCC; checkpoints in --out")
     t.add_argument("--out", required=True, help="checkpoint directory")

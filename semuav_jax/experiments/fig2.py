@@ -27,14 +27,13 @@ from baselines.dwell import DWELL_POLICIES
 from baselines.planner import PlanState, make_plans
 from baselines.report import flights, tune
 from semuav_jax.agents.config import DDQNConfig
+from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.network import QNetwork
-from semuav_jax.agents.policy import greedy_policy
 from semuav_jax.experiments.behaviour import behaviour, path, summarize, traced_runs
 from semuav_jax.experiments.stages import Stages
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams
-from semuav_jax.rollout import rollout
-from semuav_jax.sharding import map_episodes, split_hosts
+from semuav_jax.sharding import split_hosts
 from semuav_jax.stats import mean_ci, pm
 
 BANDWIDTHS = (5e3, 10e3, 15e3, 20e3, 25e3, 30e3, 35e3, 40e3)
@@ -83,19 +82,6 @@ def shared_plans(keys: jax.Array, params: EnvParams, workers: int = 2) -> PlanSt
     return PlanState(**{k: jnp.asarray(v) for k, v in plan.items()})
 
 
-def agent_metrics(
-    network: QNetwork, nets: Any, config: DDQNConfig, keys: jax.Array, params: EnvParams, bandwidths: Sequence[float]
-) -> dict[str, np.ndarray]:
-    """Per-episode metrics (seeds, len(bandwidths), E) of the greedy policy of every seed of ``nets``
-    at every B: ``agents.evaluate.seed_metrics`` run in fixed-size blocks of episodes
-    (``sharding.map_episodes``), so the bits do not depend on the devices and processes."""
-    policy = greedy_policy(network, config)
-    at = lambda net, b, k: rollout(policy, k, params.replace(B=b), net, state_axes=None)[0]
-    run = jax.jit(jax.vmap(jax.vmap(at, (None, 0, None)), (0, None, None)))
-    B = jnp.asarray(bandwidths, jnp.float32)
-    return map_episodes(lambda k: run(nets, B, k), keys)
-
-
 def run(
     network: QNetwork,
     nets: Any,
@@ -139,7 +125,7 @@ def run(
             for row in flights(params, keys, tuned, sweep_B, workers, rank=rank, plans=plans)
         ],
     )
-    agent = stage("agent evaluated", lambda: agent_metrics(network, nets, config, keys, params, sweep_B))
+    agent = stage("agent evaluated", lambda: seed_metrics(network, nets, config, keys, params, sweep_B))
     out = {
         "layouts": len(keys),
         "test_seed": TEST_SEED,

@@ -232,9 +232,3 @@ def validation_table(
         for s, row in enumerate(psnr):
             lines.append(f"| {folder} | {run.seed}:{s} | " + " | ".join(f"{x:.2f}" for x in row) + " |")
     return "\n".join(lines)
-
-
-if __name__ == "__main__":  # ``python -m semuav_jax.experiments.learned``: the command of semuav_jax.cli.compare
-    from semuav_jax.cli.compare import main
-
-    raise SystemExit(main())

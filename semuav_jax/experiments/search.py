@@ -4,12 +4,12 @@ first ``episodes`` test layouts (``keys.TEST_SEED``) as the two dwell references
 run's eval.json chose on validation layouts. Margins are per-episode paired differences; across
 seeds, the mean of the seeds' means with its t interval. No seed is selected.
 
-    python -m semuav_jax.experiments.search RUN_FOLDER [--episodes 100] [--json out.json]
+The command line: ``semuav-search RUN_FOLDER [--episodes 100] [--json out.json]``
+(``semuav_jax.cli.search``).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import time
@@ -26,7 +26,6 @@ from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.network import q_network
 from semuav_jax.agents.runs import EVAL_FILE, load_run
 from semuav_jax.agents.search import SEARCH_EVERY, search_metrics
-from semuav_jax.io import atomic_write
 from semuav_jax.keys import TEST_SEED, episode_keys
 from semuav_jax.sharding import map_episodes
 from semuav_jax.stats import mean_ci, pm
@@ -54,8 +53,7 @@ def compare_search(
         }
     except (OSError, KeyError, ValueError, TypeError) as e:
         raise ValueError(
-            f"{folder}/{EVAL_FILE} has no dwell tuning ({type(e).__name__}: {e}); run "
-            "python -m semuav_jax.experiments.learned on it first"
+            f"{folder}/{EVAL_FILE} has no dwell tuning ({type(e).__name__}: {e}); run semuav-compare on it first"
         ) from None
     missing = [b for b in bandwidths if float(b) not in knobs]
     if missing:
@@ -125,24 +123,3 @@ def markdown(r: dict) -> str:
             f"{a['agent'][0]:.2f} | " + " | ".join(cells) + " | |"
         )
     return "\n".join(lines)
-
-
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("folder", help="a finished train.py run folder with its eval.json")
-    ap.add_argument("--episodes", type=int, default=100, help="test layouts (the first of keys.TEST_SEED)")
-    ap.add_argument("--every", type=int, default=SEARCH_EVERY, help="slots between two decisions")
-    ap.add_argument("--json", help="write the numbers here (atomically)")
-    args = ap.parse_args(argv)
-    try:
-        r = compare_search(args.folder, args.episodes, every=args.every)
-    except ValueError as e:
-        ap.error(str(e))
-    print(markdown(r))
-    if args.json:
-        atomic_write(args.json, json.dumps(r, indent=1).encode())
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -1,6 +1,6 @@
 """DeepJSCC in flax: model, training, PSNR curves C[i, k] (MODEL.md section 9).
 
-Run ``python -m semuav_jax.jscc --help`` for the train / curves / figure commands.
+Run ``semuav-jscc --help`` for the train / curves / figure commands.
 """
 
 from semuav_jax.jscc.model import (

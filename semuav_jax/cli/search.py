@@ -1,0 +1,36 @@
+"""The agent with search at the BS against the reactive agent, TSP-dwell and dwell-switch
+
+``semuav-search RUN_FOLDER [--episodes 100] [--every 8] [--json out.json]``: the table of
+``semuav_jax.experiments.search`` for a finished train.py run folder whose eval.json holds the
+dwell tuning (docs/ddqn.md, "The agent with search"), printed as Markdown.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from semuav_jax.agents.search import SEARCH_EVERY
+from semuav_jax.experiments.search import compare_search, markdown
+from semuav_jax.io import atomic_write
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("folder", help="a finished train.py run folder with its eval.json")
+    ap.add_argument("--episodes", type=int, default=100, help="test layouts (the first of keys.TEST_SEED)")
+    ap.add_argument("--every", type=int, default=SEARCH_EVERY, help="slots between two decisions")
+    ap.add_argument("--json", help="write the numbers here (atomically)")
+    args = ap.parse_args(argv)
+    try:
+        r = compare_search(args.folder, args.episodes, every=args.every)
+    except ValueError as e:
+        ap.error(str(e))
+    print(markdown(r))
+    if args.json:
+        atomic_write(args.json, json.dumps(r, indent=1).encode())
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
