@@ -125,8 +125,10 @@ def travel_bound(keys: jax.Array, params: EnvParams) -> np.ndarray:
 def flight_account(trace: dict, keys: jax.Array, params: EnvParams) -> dict:
     """Where a flight stands against the relaxation (docs/baselines.md, "Where the gap lies"): per
     episode (E,) its seconds with data (some device transmitting), without data before the end and
-    unused after it; the dead seconds eq. 7.12 allows for the same set of touched discs; and the
-    symbols it received per second with data as a share of the best rate R0 / beta."""
+    unused after it, and those of them left while an untouched device was in reach (a round trip
+    from q_fin into its range disc at v_max fits in the unused time); the dead seconds eq. 7.12
+    allows for the same set of touched discs; and the symbols it received per second with data as
+    a share of the best rate R0 / beta."""
     x, done = np.asarray(trace["x"]), np.asarray(trace["done"])
     live = np.concatenate([np.ones_like(done[:, :1]), ~done[:, :-1]], axis=1)
     tau = float(params.tau)
@@ -138,10 +140,14 @@ def flight_account(trace: dict, keys: jax.Array, params: EnvParams) -> dict:
     relaxed = np.take_along_axis(dead_slots(pos, params), S[:, None], 1)[:, 0] * tau
     m = np.asarray(trace["m"])[:, -1].sum(-1)
     rate = peak_rate(params) / float(params.beta)
+    unused = params.K * tau - flown
+    gap = np.maximum(np.linalg.norm(pos - np.asarray(params.q_fin), axis=-1) - float(range_radius(params)), 0.0)
+    in_reach = (~touched & (2 * gap / float(params.v_max) <= unused[:, None])).any(-1)
     return {
         "data_s": data,
         "dead_s": flown - data,
-        "unused_s": params.K * tau - flown,
+        "unused_s": unused,
+        "unused_in_reach_s": unused * in_reach,
         "relaxed_dead_s": relaxed,
         "rate_share": m / np.maximum(data * rate, 1e-9),
     }

@@ -12,7 +12,7 @@ from baselines.dwell import dwell_metrics, greedy_dwell, tsp_dwell
 from baselines.dwell_switch import dwell_switch_metrics
 from baselines.evaluate import evaluate, run, tsp_ranks
 from baselines.planner import make_plans, planner
-from baselines.travel_bound import _subsets, dead_slots, envelope_gains, layout_bound, travel_bound
+from baselines.travel_bound import _subsets, dead_slots, envelope_gains, flight_account, layout_bound, travel_bound
 from semuav_jax.params import make_params
 from semuav_jax.rollout import random_policy, random_policy_state, rollout
 
@@ -29,6 +29,24 @@ def test_dead_slots_by_hand(params):
     to_first, gap = (100.0 - rc) / 12.5 - 1.0, (200.0 - 2 * rc) / 12.5 - 1.0
     home = np.hypot(900.0, 0.0) - rc - 15.0
     assert d[0b11] == pytest.approx(to_first + gap + home / 12.5 - 1.0)
+
+
+def test_unused_time_in_reach_of_an_unserved_device(params):
+    """A flight that ends after 40 of K slots touching no device leaves T - 20 s unused, all of it
+    with some device in reach (every device lies well within (T - 20 s) * v_max / 2 of q_fin); one
+    that touched every device, or that used the whole mission, leaves none in reach."""
+    keys = jax.random.split(jax.random.PRNGKey(4), 1)
+    K, N, tau = params.K, params.N, float(params.tau)
+    done = np.zeros((1, K), bool)
+    done[0, 39:] = True
+    trace = {"x": np.zeros((1, K, N), bool), "done": done, "m": np.zeros((1, K, N))}
+    a = flight_account(trace, keys, params)
+    assert a["unused_s"][0] == pytest.approx((K - 40) * tau)
+    assert a["unused_in_reach_s"][0] == pytest.approx((K - 40) * tau)
+    touched = dict(trace, x=np.ones((1, K, N), bool))
+    assert flight_account(touched, keys, params)["unused_in_reach_s"][0] == 0.0
+    whole = dict(trace, done=np.zeros((1, K), bool))
+    assert flight_account(whole, keys, params)["unused_in_reach_s"][0] == 0.0
 
 
 def test_envelope_gains_are_a_concave_majorant(curves):
