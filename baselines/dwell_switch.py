@@ -42,14 +42,15 @@ def knob_table(v_c: float, margin: float, k_star: ArrayLike = SWITCH_K) -> jax.A
     return jnp.asarray(rows, jnp.float32)
 
 
-def _candidate(table: jax.Array, rank: jax.Array, c: jax.Array) -> tuple[jax.Array, DwellState]:
+def dwell_candidate(table: jax.Array, rank: jax.Array, c: jax.Array) -> tuple[jax.Array, DwellState]:
+    """The policy state of :func:`either_dwell` for row ``c`` of :func:`knob_table`."""
     row = table[c]
     return row[0] > 0, init_dwell(row[1], row[2], row[3], rank)
 
 
 @cache
 def switching(every: int = SWITCH_EVERY, samples: int = SWITCH_SAMPLES, count: int = 2 * len(SWITCH_K)) -> Switching:
-    return Switching(Policy(act=either_dwell), _candidate, count, every, samples)
+    return Switching(Policy(act=either_dwell), dwell_candidate, count, every, samples)
 
 
 def dwell_switch_metrics(

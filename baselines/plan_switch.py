@@ -23,7 +23,7 @@ from jax.typing import ArrayLike
 
 from baselines import receding
 from baselines.dwell import DwellState, check_knobs
-from baselines.dwell_switch import SWITCH_K, SWITCH_SAMPLES, _candidate, either_dwell, knob_table
+from baselines.dwell_switch import SWITCH_K, SWITCH_SAMPLES, dwell_candidate, either_dwell, knob_table
 from baselines.planner import PlanState, planner
 from semuav_jax.engine import Policy
 from semuav_jax.lookahead import LOOKAHEAD_STREAM, Switching, choose
@@ -50,16 +50,16 @@ def hybrid(ps: HybridState, s: EnvState, params: EnvParams) -> tuple[jax.Array, 
     return jnp.where(ps.use_plan, a_plan, a_dwell), ps.replace(plan=plan)
 
 
-def _hybrid_candidate(table: jax.Array, per_episode: tuple[PlanState, jax.Array], c: jax.Array) -> HybridState:
+def hybrid_candidate(table: jax.Array, per_episode: tuple[PlanState, jax.Array], c: jax.Array) -> HybridState:
     """Candidate 0: the plan; candidate c >= 1: row c - 1 of ``dwell_switch.knob_table``."""
     plan, rank = per_episode
-    return HybridState(c == 0, plan, _candidate(table, rank, jnp.maximum(c - 1, 0)))
+    return HybridState(c == 0, plan, dwell_candidate(table, rank, jnp.maximum(c - 1, 0)))
 
 
 @cache
 def plan_switching(count: int, samples: int = SWITCH_SAMPLES) -> Switching:
     """The candidates' simulation (``every`` is unused: ``rollout_replanned`` sets the decisions)."""
-    return Switching(Policy(act=hybrid), _hybrid_candidate, count, 1, samples)
+    return Switching(Policy(act=hybrid), hybrid_candidate, count, 1, samples)
 
 
 @partial(jax.jit, static_argnames=("sw",))
@@ -95,7 +95,7 @@ def fly(
         i = next(calls)
         best = _choose_all(sw, states, table, (plan, rank), jax.vmap(jax.random.fold_in, (0, None))(look, i), params)
         chosen.append(np.asarray(best))
-        return jax.vmap(_hybrid_candidate, (None, 0, 0))(table, (plan, rank), best)
+        return jax.vmap(hybrid_candidate, (None, 0, 0))(table, (plan, rank), best)
 
     every = max(1, round(receding.REPLAN_EVERY_S / float(params.tau)))
     m, tr = rollout_replanned(Policy(act=hybrid), keys, params, replan, every, trace)

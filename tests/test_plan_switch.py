@@ -29,13 +29,13 @@ def test_a_candidate_flies_the_plan_or_its_dwell_rule(p, keys):
     plan = jax.tree.map(lambda x: x[0], make_plans(keys[:1], p, workers=1))
     table, rank = knob_table(25.0, -2.0), jnp.arange(10, dtype=jnp.int32)
     for c in (0, 1, 7, 12):
-        ps = plan_switch._hybrid_candidate(table, (plan, rank), jnp.int32(c))
+        ps = plan_switch.hybrid_candidate(table, (plan, rank), jnp.int32(c))
         a, _ = plan_switch.hybrid(ps, s, p)
         want = planner(plan, s, p)[0] if c == 0 else either_dwell(ps.dwell, s, p)[0]
         np.testing.assert_array_equal(np.asarray(a), np.asarray(want))
         assert bool(ps.use_plan) == (c == 0)
     np.testing.assert_array_equal(
-        np.asarray(plan_switch._hybrid_candidate(table, (plan, rank), 3).dwell[1].k_star), 48.0
+        np.asarray(plan_switch.hybrid_candidate(table, (plan, rank), 3).dwell[1].k_star), 48.0
     )
 
 

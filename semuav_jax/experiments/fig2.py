@@ -39,6 +39,18 @@ from semuav_jax.stats import mean_ci, pm
 BANDWIDTHS = (5e3, 10e3, 15e3, 20e3, 25e3, 30e3, 35e3, 40e3)
 VELOCITIES = (4.0, 6.0, DEFAULT_V_B, 11.0, 14.0, 17.0, 20.0, 24.0)
 PANEL_B = 25e3
+REFERENCES = (
+    "greedy 8.9",
+    "tsp 8.9",
+    "greedy v_b*",
+    "tsp v_b*",
+    "greedy-dwell",
+    "tsp-dwell",
+    "dwell-switch",
+    "planner",
+    "exact planner",
+    "plan-switch",
+)  # the rows of panel (a) beside the agent, in the order of the tables and figures
 FULL = {"bandwidths": BANDWIDTHS, "velocities": VELOCITIES, "layouts": 1000, "validation_layouts": 500}
 QUICK = {
     "bandwidths": (5e3, 20e3, 25e3, 40e3),
@@ -206,18 +218,7 @@ def panel_b(keys: jax.Array, params: EnvParams, velocities: Sequence[float], ran
 
 def markdown(r: dict) -> str:
     """The tables of docs/RESULTS.md: panel (a) with the agent's margins, panel (b), and the behaviour at 25 kHz."""
-    refs = (
-        "greedy 8.9",
-        "tsp 8.9",
-        "greedy v_b*",
-        "tsp v_b*",
-        "greedy-dwell",
-        "tsp-dwell",
-        "dwell-switch",
-        "planner",
-        "exact planner",
-        "plan-switch",
-    )
+    refs = REFERENCES
     margins = ("tsp v_b*", "tsp-dwell", "dwell-switch", "plan-switch")
     lines = [
         f"{r['layouts']} test layouts (seed {r['test_seed']}); DDQN: mean of {r['seeds']} seeds ± t interval "

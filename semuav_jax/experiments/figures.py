@@ -14,6 +14,7 @@ import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 
 from semuav_jax.control import range_radius  # noqa: E402
+from semuav_jax.experiments.fig2 import REFERENCES  # noqa: E402
 from semuav_jax.io import save_figure  # noqa: E402
 from semuav_jax.stats import wilson_interval  # noqa: E402
 
@@ -119,16 +120,7 @@ def fig2b(r: dict, path: str | os.PathLike) -> None:
 def fig2c(paths: dict, params: EnvParams, path: str | os.PathLike) -> None:
     """Trajectories on the paper layout, one panel per policy: the path coloured by speed, each device's
     seconds in range written beside it and drawn as a ring whose size grows with them."""
-    order = (
-        "agent",
-        "tsp v_b*",
-        "greedy-dwell",
-        "tsp-dwell",
-        "dwell-switch",
-        "planner",
-        "exact planner",
-        "plan-switch",
-    )
+    order = ("agent", "tsp v_b*", *REFERENCES[REFERENCES.index("greedy-dwell") :])
     names = [n for n in order if n in paths]
     fig, axes = plt.subplots(2, 4, figsize=(21, 6.3), sharex=True, sharey=True)
     for ax in axes.ravel()[len(names) :]:
