@@ -113,7 +113,14 @@ def fig2b(r: dict, path: str | os.PathLike) -> None:
     )
     for a in (ax, ax2):
         a.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="lower center", ncol=2)
+    fig.legend(
+        *ax.get_legend_handles_labels(),
+        fontsize=8,
+        loc="upper center",
+        bbox_to_anchor=(0.5, 0.0),
+        ncol=3,
+        frameon=False,
+    )  # below the panels: it hides no curve
     save_figure(fig, path)
 
 
@@ -149,7 +156,7 @@ def fig2c(paths: dict, params: EnvParams, path: str | os.PathLike) -> None:
         ax.plot(*np.asarray(params.q_fin), "k*", ms=10)
         label = "DDQN (ours), seed 0" if name == "agent" else STYLE[name]["label"]
         ax.set_title(
-            f"{label}: {p['mean_psnr']:.1f} dB, {p['coverage']:.0f} covered, {p['mission_time']:.0f} s", fontsize=9
+            f"{label}\n{p['mean_psnr']:.1f} dB, {p['coverage']:.0f} covered, {p['mission_time']:.0f} s", fontsize=9
         )
         ax.set(xlim=(lo[0], hi[0]), ylim=(lo[1], hi[1]), aspect="equal")
     for ax in axes[-1]:
