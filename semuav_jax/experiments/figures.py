@@ -38,6 +38,21 @@ STYLE = {
 BANDS = ("agent", "greedy-dwell", "tsp-dwell", "dwell-switch", "planner", "exact planner", "plan-switch")
 
 
+def _finish(fig: plt.Figure, ax: plt.Axes, ax2: plt.Axes, path: str | os.PathLike, fontsize: int, ncol: int) -> None:
+    """Grids, ``ax``'s legend below the panels (it hides no data whatever the grid), and the file."""
+    for a in (ax, ax2):
+        a.grid(alpha=0.3)
+    fig.legend(
+        *ax.get_legend_handles_labels(),
+        fontsize=fontsize,
+        loc="upper center",
+        bbox_to_anchor=(0.5, 0.0),
+        ncol=ncol,
+        frameon=False,
+    )
+    save_figure(fig, path)
+
+
 def fig2a(r: dict, path: str | os.PathLike) -> None:
     """Mean PSNR vs B (left) and devices covered (right): the agent with its t interval across seeds, the
     baselines at 8.9 m/s and at v_b*, the dwell rules, dwell-switch, both planners and plan-switch
@@ -64,17 +79,7 @@ def fig2a(r: dict, path: str | os.PathLike) -> None:
         title=f"(a) {r['layouts']} test layouts; DDQN: {r['seeds']} seeds, CI across seeds",
     )
     ax2.set(xlabel="device bandwidth B (kHz)", ylabel="devices covered (of N = 10)", title="coverage")
-    for a in (ax, ax2):
-        a.grid(alpha=0.3)
-    fig.legend(
-        *ax.get_legend_handles_labels(),
-        fontsize=9,
-        loc="upper center",
-        bbox_to_anchor=(0.5, 0.0),
-        ncol=6,
-        frameon=False,
-    )  # below the panels: it hides no data whatever the grid
-    save_figure(fig, path)
+    _finish(fig, ax, ax2, path, fontsize=9, ncol=6)
 
 
 def fig2b(r: dict, path: str | os.PathLike) -> None:
@@ -111,17 +116,7 @@ def fig2b(r: dict, path: str | os.PathLike) -> None:
         ylim=(min(0.9, ax2.get_ylim()[0]), 1.005),
         title=f"arrival, Wilson 95 % intervals over {n} layouts",
     )
-    for a in (ax, ax2):
-        a.grid(alpha=0.3)
-    fig.legend(
-        *ax.get_legend_handles_labels(),
-        fontsize=8,
-        loc="upper center",
-        bbox_to_anchor=(0.5, 0.0),
-        ncol=3,
-        frameon=False,
-    )  # below the panels: it hides no curve
-    save_figure(fig, path)
+    _finish(fig, ax, ax2, path, fontsize=8, ncol=3)
 
 
 def fig2c(paths: dict, params: EnvParams, path: str | os.PathLike) -> None:
