@@ -85,7 +85,7 @@ def initialize(args: argparse.Namespace) -> None:
     jax.config.update("jax_cpu_collectives_implementation", "gloo")
     t = int(args.dist_timeout)
     # the runtime's own limits are a backstop at twice ours: when it gives up it aborts with a long log
-    kw = {"initialization_timeout": 2 * t, "heartbeat_timeout_seconds": t, "shutdown_timeout_seconds": t}
+    kw = {"initialization_timeout": 2 * t, "heartbeat_timeout_seconds": 2 * t, "shutdown_timeout_seconds": t}
     if args.coordinator != "auto":
         kw.update(
             coordinator_address=args.coordinator,
