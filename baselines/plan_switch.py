@@ -26,7 +26,7 @@ from baselines.dwell import DwellState, check_knobs
 from baselines.dwell_switch import SWITCH_K, SWITCH_SAMPLES, dwell_candidate, either_dwell, knob_table
 from baselines.planner import PlanState, planner
 from semuav_jax.engine import Policy
-from semuav_jax.lookahead import LOOKAHEAD_STREAM, Switching, choose
+from semuav_jax.lookahead import Switching, choose, decision_key
 from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import rollout_replanned
 
@@ -87,13 +87,13 @@ def fly(
     table = knob_table(v_c, margin, k_star)
     sw = plan_switching(1 + int(table.shape[0]))
     rank = jnp.asarray(rank, jnp.int32)
-    look = jax.vmap(lambda k: jax.random.fold_in(jnp.asarray(k), LOOKAHEAD_STREAM))(jnp.asarray(keys))
+    keys = jnp.asarray(keys)
     exact, calls, chosen = receding.make_replanner(params, workers=workers), itertools.count(), []
 
     def replan(states: EnvState, ps: HybridState | None) -> HybridState:
         plan = jax.tree.map(jnp.asarray, exact(states, None if ps is None else ps.plan))
         i = next(calls)
-        best = _choose_all(sw, states, table, (plan, rank), jax.vmap(jax.random.fold_in, (0, None))(look, i), params)
+        best = _choose_all(sw, states, table, (plan, rank), jax.vmap(decision_key, (0, None))(keys, i), params)
         chosen.append(np.asarray(best))
         return jax.vmap(hybrid_candidate, (None, 0, 0))(table, (plan, rank), best)
 

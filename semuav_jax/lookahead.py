@@ -21,6 +21,7 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 from flax import struct
+from jax.typing import ArrayLike
 
 from semuav_jax.engine import Policy, as_policy, observe
 from semuav_jax.env import EnvState, reset_state
@@ -40,6 +41,11 @@ class Switching(NamedTuple):
     count: int  # C candidates
     every: int  # slots between two decisions
     samples: int = 1  # delay draws each candidate is simulated with (the same for every candidate)
+
+
+def decision_key(key: jax.Array, i: ArrayLike) -> jax.Array:
+    """The delay draws of decision i of the episode ``key``: its own stream, never the episode's."""
+    return jax.random.fold_in(jax.random.fold_in(key, LOOKAHEAD_STREAM), i)
 
 
 def check_switching(sw: Switching) -> Switching:
@@ -78,7 +84,6 @@ def switching_episode(
     ``sw.every`` slots; returns (metrics, (decisions,) chosen candidate indices, the trace of
     ``rollout.episode`` when asked)."""
     k_reset, k_steps = jax.random.split(key)
-    k_look = jax.random.fold_in(key, LOOKAHEAD_STREAM)
     periods = -(-params.K // sw.every)
     u = delay_draws(k_steps, params)
     u = jnp.concatenate([u, jnp.zeros(periods * sw.every - params.K)]).reshape(periods, sw.every)
@@ -86,7 +91,7 @@ def switching_episode(
 
     def period(c: Any, xs: tuple[jax.Array, jax.Array]) -> tuple[Any, tuple[jax.Array, Any]]:
         draws, i = xs
-        best, _ = choose(sw, c.state, shared, per_episode, jax.random.fold_in(k_look, i), params)
+        best, _ = choose(sw, c.state, shared, per_episode, decision_key(key, i), params)
         c = c._replace(policy_state=sw.candidate(shared, per_episode, best), obs=observe(sw.policy, c.state, params))
         c, tr = jax.lax.scan(scan_body(sw.policy, params, trace), c, draws)  # slots after t = K are frozen
         return c, (best, tr)
