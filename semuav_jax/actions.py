@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 from jax.typing import ArrayLike
 
-from semuav_jax.control import approach_speed, home_command, rest_command, speed_command
+from semuav_jax.control import approach_speed, home_command, rest_command, speed_command, time_via
 from semuav_jax.params import EnvParams
 
 if TYPE_CHECKING:
@@ -39,7 +39,8 @@ def action_to_accel(action: ArrayLike, params: EnvParams) -> jax.Array:
 
 # ---------------------------------------------------------------- waypoint actions (eq. 6.2)
 
-ACTION_MODES = ("table", "waypoint", "dwell")  # eq. 6.1, eq. 6.2, eq. 6.3
+ACTION_MODES = ("table", "waypoint", "dwell", "option")  # eqs. 6.1, 6.2, 6.3, 6.4
+ENV_ACTION_MODES = ACTION_MODES[:3]  # what an env step takes: an option needs the agent's commitment
 
 TARGETS = 3  # the nearest unfinished devices a waypoint action can aim at
 SPEEDS = (0.0, 6.0, 12.0, 18.0, 25.0)  # m/s; 0 = fly over the device and hover there (eq. 7.3)
@@ -95,16 +96,69 @@ def dwell_accel(action: ArrayLike, state: EnvState, params: EnvParams) -> jax.Ar
     return jnp.where(action < NUM_WAYPOINT_ACTIONS, waypoint_accel(action, state, params), stay)
 
 
+# ---------------------------------------------------------------- options (eq. 6.4)
+
+OPTION_TARGETS = 4  # an option serves one of the 4 nearest devices short of its k
+OPTION_K = (16.0, 24.0, 32.0, 48.0, 64.0, 96.0)  # symbols: "serve until k" of the options
+OPTION_MARGIN = -2.0  # s: the time margin of eq. 7.9, that of the tuned dwell rules (docs/baselines.md)
+OPTION_HOME = OPTION_TARGETS * len(OPTION_K)  # the last option: fly home
+NUM_OPTIONS = OPTION_HOME + 1
+HOME_CODE = -1  # the command code of the home option
+
+
+def option_fits(state: EnvState, params: EnvParams) -> jax.Array:
+    """(N,) bool, eq. 7.9: the devices that an option can still serve, i.e. flying to one at
+    DWELL_SPEED, stopping there and flying home (eqs. 7.4-7.5) fits in the time left less
+    OPTION_MARGIN."""
+    need = jax.vmap(lambda p: time_via(state.q, state.v, p, DWELL_SPEED, params, stop=True))(state.dev_pos)
+    return need + OPTION_MARGIN <= (params.K - state.t) * params.tau
+
+
+def option_code(
+    choice: ArrayLike, m: ArrayLike, fits: ArrayLike, order: ArrayLike, params: EnvParams
+) -> tuple[jax.Array, jax.Array]:
+    """Eq. 6.4: the command code and the symbol target k of option ``choice``, given the symbols
+    ``m``, :func:`option_fits` and the devices in :func:`device_order`. Option j * len(OPTION_K) + i
+    serves the j-th nearest device n among the candidates of eq. 7.9 for k = OPTION_K[i] (short of
+    k symbols, and it fits) (the last of them when fewer than j + 1 are) until it holds k: code n,
+    fixed at the decision whatever the order becomes. Option j = 0 followed throughout is
+    greedy-dwell with k* = k and margin OPTION_MARGIN (eq. 7.10). OPTION_HOME, or no candidate, is
+    HOME_CODE (k = inf)."""
+    L = len(OPTION_K)
+    k = jnp.asarray(OPTION_K)[jnp.minimum(choice, OPTION_HOME - 1) % L]
+    order = jnp.asarray(order)
+    short = (jnp.asarray(m)[order] < k - 1e-3) & jnp.asarray(fits)[order]
+    rank = jnp.cumsum(short) - 1
+    j = jnp.minimum(choice // L, jnp.sum(short) - 1)
+    n = order[jnp.argmax(short & (rank == j))]
+    home = (choice >= OPTION_HOME) | ~jnp.any(short)
+    return jnp.where(home, HOME_CODE, n).astype(jnp.int32), jnp.where(home, jnp.inf, k)
+
+
+def option_accel(code: ArrayLike, state: EnvState, params: EnvParams) -> jax.Array:
+    """The command of an option's code: cruise at DWELL_SPEED to device ``code`` and stay at rest over
+    it (eq. 7.3 with STOP_BRAKE), or, for HOME_CODE, fly home at v_max (eq. 7.1)."""
+    n = jnp.maximum(code, 0)
+    d = jnp.linalg.norm(state.dev_pos - state.q, axis=-1)
+    one = jnp.arange(state.dev_pos.shape[0]) == n
+    stay = rest_command(state.q, state.v, state.dev_pos, d, one, DWELL_SPEED, params.v_max, params)
+    return jnp.where(code >= 0, stay, home_command(state.q, state.v, params.v_max, params))
+
+
 def num_actions(mode: str, params: EnvParams) -> int:
     """How many discrete actions the action mode ``mode`` has (eq. 6.1: levels^2; eq. 6.2:
-    NUM_WAYPOINT_ACTIONS; eq. 6.3: NUM_DWELL_ACTIONS)."""
-    return {"waypoint": NUM_WAYPOINT_ACTIONS, "dwell": NUM_DWELL_ACTIONS}.get(mode, params.levels * params.levels)
+    NUM_WAYPOINT_ACTIONS; eq. 6.3: NUM_DWELL_ACTIONS; eq. 6.4: NUM_OPTIONS)."""
+    sizes = {"waypoint": NUM_WAYPOINT_ACTIONS, "dwell": NUM_DWELL_ACTIONS, "option": NUM_OPTIONS}
+    return sizes.get(mode, params.levels * params.levels)
 
 
 def to_accel(mode: str, action: ArrayLike, state: EnvState, params: EnvParams) -> jax.Array:
-    """The acceleration of discrete ``action`` in the action mode ``mode`` (static): eq. 6.1, 6.2 or 6.3."""
+    """The acceleration of discrete ``action`` in the action mode ``mode`` (static): eq. 6.1, 6.2 or
+    6.3, or for options (eq. 6.4) the command code of :func:`option_code`."""
     if mode == "waypoint":
         return waypoint_accel(action, state, params)
     if mode == "dwell":
         return dwell_accel(action, state, params)
+    if mode == "option":
+        return option_accel(action, state, params)
     return action_to_accel(action, params)

@@ -18,7 +18,7 @@ from gymnax.environments import environment, spaces
 from jax.typing import ArrayLike
 
 from semuav_jax import channel, kinematics, quality
-from semuav_jax.actions import ACTION_MODES, num_actions, to_accel
+from semuav_jax.actions import ENV_ACTION_MODES, num_actions, to_accel
 from semuav_jax.observation import obs_bounds, obs_size, observation
 from semuav_jax.params import EnvParams, make_params, params_valid, validate_params
 from semuav_jax.reward import reward
@@ -130,8 +130,8 @@ class SemUAVEnv(environment.Environment[EnvState, EnvParams]):
     """
 
     def __init__(self, params: EnvParams | None = None, actions: str = "table") -> None:
-        if actions not in ACTION_MODES:
-            raise ValueError(f"actions must be one of {ACTION_MODES}, got {actions!r}")
+        if actions not in ENV_ACTION_MODES:
+            raise ValueError(f"actions must be one of {ENV_ACTION_MODES}, got {actions!r}")
         self._params = params
         self.actions = actions
         self._checked = None  # the last EnvParams object validated

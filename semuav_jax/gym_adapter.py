@@ -15,7 +15,7 @@ import jax
 import numpy as np
 from jax.typing import ArrayLike
 
-from semuav_jax.actions import ACTION_MODES
+from semuav_jax.actions import ENV_ACTION_MODES
 from semuav_jax.env import ENV_ID, EnvState, SemUAVEnv, make
 from semuav_jax.metrics import episode_metrics
 from semuav_jax.params import EnvParams
@@ -23,7 +23,7 @@ from semuav_jax.params import EnvParams
 # The jitted functions take the parameters as an argument, so every adapter with the same static
 # parameters (K, M, N, ...) and action mode shares one compiled program; these instances only
 # supply the methods.
-_ENVS = {mode: SemUAVEnv(actions=mode) for mode in ACTION_MODES}
+_ENVS = {mode: SemUAVEnv(actions=mode) for mode in ENV_ACTION_MODES}
 
 
 @jax.jit

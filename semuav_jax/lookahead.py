@@ -41,6 +41,7 @@ class Switching(NamedTuple):
     count: int  # C candidates
     every: int  # slots between two decisions
     samples: int = 1  # delay draws each candidate is simulated with (the same for every candidate)
+    from_state: bool = False  # candidate(shared, per_episode, c, policy state now; None at t = 0)
 
 
 def decision_key(key: jax.Array, i: ArrayLike) -> jax.Array:
@@ -61,15 +62,27 @@ def score(metrics: dict[str, jax.Array], params: EnvParams) -> jax.Array:
     return metrics["mean_psnr"] + ARRIVAL_DB * (metrics["arrived"].astype(jnp.float32) + spare)
 
 
+def candidate(sw: Switching, shared: Any, per_episode: Any, c: jax.Array, now: Any = None) -> Any:
+    """The policy state of candidate ``c`` (``now``: the policy state at the decision, for
+    candidates that go on from it)."""
+    return sw.candidate(shared, per_episode, c, now) if sw.from_state else sw.candidate(shared, per_episode, c)
+
+
 def choose(
-    sw: Switching, state: EnvState, shared: Any, per_episode: Any, key: jax.Array, params: EnvParams
+    sw: Switching,
+    state: EnvState,
+    shared: Any,
+    per_episode: Any,
+    key: jax.Array,
+    params: EnvParams,
+    now: Any = None,
 ) -> tuple[jax.Array, jax.Array]:
-    """Eq. 7.15: (index of the best candidate, (C,) mean scores) from ``state``, each candidate
-    simulated to the end with the same ``samples`` delay draws."""
+    """Eq. 7.15: (index of the best candidate, (C,) mean scores) from ``state`` (``now``: the policy
+    state there), each candidate simulated to the end with the same ``samples`` delay draws."""
     keys = jax.random.split(key, sw.samples)
 
     def value(c: jax.Array) -> jax.Array:
-        ps = sw.candidate(shared, per_episode, c)
+        ps = candidate(sw, shared, per_episode, c, now)
         runs = jax.vmap(lambda k: episode(sw.policy, k, params, ps, init_state=state)[0])(keys)
         return jnp.mean(score(runs, params))
 
@@ -91,12 +104,13 @@ def switching_episode(
 
     def period(c: Any, xs: tuple[jax.Array, jax.Array]) -> tuple[Any, tuple[jax.Array, Any]]:
         draws, i = xs
-        best, _ = choose(sw, c.state, shared, per_episode, decision_key(key, i), params)
-        c = c._replace(policy_state=sw.candidate(shared, per_episode, best), obs=observe(sw.policy, c.state, params))
+        best, _ = choose(sw, c.state, shared, per_episode, decision_key(key, i), params, c.policy_state)
+        ps = candidate(sw, shared, per_episode, best, c.policy_state)
+        c = c._replace(policy_state=ps, obs=observe(sw.policy, c.state, params))
         c, tr = jax.lax.scan(scan_body(sw.policy, params, trace), c, draws)  # slots after t = K are frozen
         return c, (best, tr)
 
-    c0 = start(sw.policy, state, sw.candidate(shared, per_episode, jnp.zeros((), jnp.int32)), params)
+    c0 = start(sw.policy, state, candidate(sw, shared, per_episode, jnp.zeros((), jnp.int32)), params)
     c, (chosen, tr) = jax.lax.scan(period, c0, (u, jnp.arange(periods)))
     if trace:  # (periods, every, ...) -> the K slots of the episode
         tr = jax.tree.map(lambda x: x.reshape((periods * sw.every,) + x.shape[2:])[: params.K], tr)

@@ -206,7 +206,7 @@ def test_training_steps_the_gymnax_step_through_the_agent(curves):
     for t in range(6):
         k = jax.random.key(10 + t)
         explore = Explore(net, jnp.float32(1.0), jnp.float32(0.0), jnp.int32(4 - t % 2))  # explore: device 0
-        s_next, obs, out, final_obs, done, met = step(k, s, agent_input(s, params, cfg), explore)
+        s_next, obs, out, final_obs, done, met, _ = step(k, s, agent_input(s, params, cfg), explore)
         sent = agent_shield(cfg)(4 - t % 2, s, params)
         _, g_next, g_rew, g_term, _, info = env.step(k, s, sent, params)
         jax.tree.map(_close, s_next, g_next)  # jitted vs eager float32: equal up to rounding

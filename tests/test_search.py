@@ -87,3 +87,32 @@ def test_the_search_command_says_what_to_run_first(tmp_path, capsys):
         main([str(folder), "--episodes", "4"])
     err = capsys.readouterr().err
     assert e.value.code == 2 and "has no dwell tuning" in err and "run semuav-compare on it first" in err, err
+
+
+def test_option_search_goes_on_with_the_agent_or_starts_an_option(curves):
+    """Options (eq. 6.4): with only candidate 0 (go on) the search is the greedy option agent; the
+    candidate c > 0 forces option c - 1 at the next slot and keeps the running option otherwise."""
+    from semuav_jax.actions import OPTION_HOME
+    from semuav_jax.agents.options import idle
+    from semuav_jax.agents.search import option_switching
+
+    cfg = DDQNConfig(hidden=(16,), actions="option", shield_margin=2.0)
+    params = make_params(curves, B=25e3, K=60)
+    network = q_network(params, cfg)
+    net = network.init(jax.random.key(1), jnp.zeros((input_size(params, cfg),)))
+    keys = jax.random.split(jax.random.PRNGKey(4), 4)
+    only = option_switching(network, cfg, 8, 1, 0)._replace(count=1)
+    m, chosen, _ = rollout_switching(only, keys, params, net)
+    ref = evaluate_agent(network, net, cfg, keys, params)
+    for k in ("mean_psnr", "arrived", "mission_time", "shield_share"):
+        np.testing.assert_allclose(np.asarray(m[k]), ref[k], rtol=1e-6, err_msg=k)
+    sw = option_switching(network, cfg, 8, 1, 2)  # continue, 2 x 6 options, home
+    assert sw.count == 14
+    now = (net, idle().replace(code=jnp.int32(4), active=jnp.bool_(True)))
+    keep, third, home = (sw.candidate(net, None, jnp.int32(c), now)[1] for c in (0, 3, 13))
+    assert (int(keep.forced), int(keep.code)) == (-1, 4)
+    assert (int(third.forced), int(third.code)) == (2, 4)
+    assert int(home.forced) == OPTION_HOME
+    m, chosen, _ = search_metrics(net, cfg, keys, params, every=8)
+    assert np.asarray(chosen).shape == (4, 8) and np.asarray(chosen).max() <= 25
+    assert np.all(np.isfinite(np.asarray(m["mean_psnr"])))

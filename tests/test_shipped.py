@@ -76,5 +76,25 @@ def test_validation_table_is_the_seeds_on_validation_layouts(capsys):
         w = jax.tree.map(lambda x, s=s: x[s], nets)
         val = evaluate_agent(network, w, config, keys, params)["mean_psnr"].mean()
         test = evaluate_agent(network, w, config, episode_keys(TEST_SEED, 4), params)["mean_psnr"].mean()
-        cell = float(row.split("|")[4])  # the 25 kHz column
+        cell = float(row.split("|")[5])  # the 25 kHz column
         assert cell == pytest.approx(val, abs=0.006) and abs(cell - test) > 0.01
+
+
+@pytest.mark.slow
+def test_validation_references_are_the_dwell_rules_at_their_tuned_knobs(capsys):
+    """``--validation --references``: TSP-dwell's row is TSP-dwell flown at the knobs tuned on the
+    same validation layouts (``baselines.report.tune``)."""
+    from baselines.dwell import dwell_metrics, tsp_dwell
+    from baselines.evaluate import tsp_ranks
+    from baselines.report import tune
+    from semuav_jax.cli.compare import main
+    from semuav_jax.keys import VALIDATION_SEED
+
+    args = [str(shipped_folder()), "--validation", "--references", "--validation-episodes", "8", "--workers", "1"]
+    assert main(args) == 0
+    row = next(r for r in capsys.readouterr().out.splitlines() if r.startswith("| tsp-dwell"))
+    params = load_run(shipped_folder())[0].env_params().replace(B=25e3)
+    keys = episode_keys(VALIDATION_SEED, 8)
+    knobs = tune(params, (25e3,), 8, workers=1, switch=False)["tsp-dwell"]["knobs"][0]
+    m = dwell_metrics(tsp_dwell, keys, params, *knobs, tsp_ranks(keys, params, workers=1))
+    assert float(row.split("|")[5]) == pytest.approx(float(m["mean_psnr"].mean()), abs=0.006)

@@ -24,7 +24,7 @@ from flax import serialization
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.network import QNetwork, q_network
-from semuav_jax.agents.policy import agent_input, greedy_policy
+from semuav_jax.agents.policy import agent_input, greedy_policy, initial_state
 from semuav_jax.agents.run_config import RunConfig
 from semuav_jax.agents.runs import check_weights, load_run, shipped_folder
 from semuav_jax.engine import command
@@ -103,10 +103,12 @@ class Agent:
 
     def act(self, state: EnvState, params: EnvParams | None = None) -> tuple[jax.Array, jax.Array]:
         """The BS's command for one ``EnvState``: (action after the shield, acceleration (2,)) for
-        ``semuav_jax.env.transition`` (jittable; greedy, epsilon = 0)."""
+        ``semuav_jax.env.transition`` (jittable; greedy, epsilon = 0). An option agent (eq. 6.4)
+        decides afresh: the option's command code and its first acceleration."""
         params = self.params if params is None else params
         policy = greedy_policy(self.network, self.config)
-        sent, _, accel, _ = command(policy, self.weights, agent_input(state, params, self.config), state, params)
+        ps = initial_state(self.weights, self.config)
+        sent, _, accel, _ = command(policy, ps, policy.observe(state, params), state, params)
         return sent, accel
 
 

@@ -13,6 +13,8 @@ from typing import Any
 
 from semuav_jax.actions import ACTION_MODES
 
+SLOTS_PER_OPTION = 16  # slots a random option lasts, about: sizes the warm-up of option agents
+
 
 def option(default: Any, help: str, **meta: Any) -> Any:
     """A config field with its command-line help and argparse hints (``train.py`` derives its options
@@ -48,7 +50,8 @@ class DDQNConfig:
     actions: str = option(
         "waypoint",
         "waypoint (eq. 6.2: device, speed or hover, home), dwell (eq. 6.3: those and stay-until-k over the "
-        "nearest device) or table (the paper's 9 accelerations)",
+        "nearest device), option (eq. 6.4: serve one of the 4 nearest devices until k symbols, or go home; "
+        "one decision per option) or table (the paper's 9 accelerations)",
     )
     bandwidth_range: tuple | None = option(
         (4e3, 45e3),
@@ -112,8 +115,10 @@ class DDQNConfig:
 
     @property
     def warmup_steps(self) -> int:
-        """Vmapped env steps of the random warm-up that fills the memory to ``learning_starts``."""
-        return -(-self.learning_starts // self.num_envs)
+        """Vmapped env steps of the random warm-up that fills the memory to about ``learning_starts``
+        (options store one transition per decision, about every SLOTS_PER_OPTION slots)."""
+        per = SLOTS_PER_OPTION if self.actions == "option" else 1
+        return -(-self.learning_starts * per // self.num_envs)
 
     @property
     def num_chunks(self) -> int:

@@ -11,7 +11,7 @@ import numpy as np
 from jax.typing import ArrayLike
 
 from semuav_jax.agents.config import DDQNConfig
-from semuav_jax.agents.policy import greedy_policy
+from semuav_jax.agents.policy import greedy_policy, initial_state
 from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import rollout
 from semuav_jax.sharding import map_episodes
@@ -26,7 +26,8 @@ def evaluate_agent(
     """Metrics (dict of (E,) NumPy arrays, with ``shield_share``) of the greedy policy of ``net_params``
     on the episodes ``keys``; with ``trace``, also the per-slot trace of ``rollout``."""
     validate_params(params)
-    metrics, tr = rollout(greedy_policy(network, config), keys, params, net_params, trace=trace, state_axes=None)
+    ps = initial_state(net_params, config)
+    metrics, tr = rollout(greedy_policy(network, config), keys, params, ps, trace=trace, state_axes=None)
     metrics = jax.tree.map(np.asarray, metrics)
     return (metrics, jax.tree.map(np.asarray, tr)) if trace else metrics
 
@@ -45,7 +46,7 @@ def seed_metrics(
     policy = greedy_policy(network, config)
 
     def at(net: Any, b: jax.Array, k: jax.Array) -> dict[str, jax.Array]:
-        return rollout(policy, k, params.replace(B=b), net, state_axes=None)[0]
+        return rollout(policy, k, params.replace(B=b), initial_state(net, config), state_axes=None)[0]
 
     run = jax.jit(jax.vmap(jax.vmap(at, (None, 0, None)), (0, None, None)))
     B = jnp.asarray(bandwidths, jnp.float32)

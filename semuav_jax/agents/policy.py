@@ -14,7 +14,8 @@ from flax import struct
 
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.features import table_features, waypoint_features
-from semuav_jax.agents.shield import shield, waypoint_shield
+from semuav_jax.agents.options import idle, option_act, option_observe
+from semuav_jax.agents.shield import option_shield, shield, waypoint_shield
 from semuav_jax.engine import Policy
 from semuav_jax.env import reset_state
 from semuav_jax.observation import observation
@@ -27,7 +28,7 @@ if TYPE_CHECKING:
 
 def agent_input(state: EnvState, params: EnvParams, config: DDQNConfig) -> jax.Array:
     """The Q-network's input for one ``EnvState`` (``agents/features.py``)."""
-    if config.actions != "table":  # waypoint and dwell actions (eqs. 6.2-6.3)
+    if config.actions != "table":  # waypoint, dwell and option actions (eqs. 6.2-6.4)
         return waypoint_features(state, params)
     obs = observation(state, params)
     return table_features(obs) if config.sorted_devices else obs
@@ -43,23 +44,43 @@ def input_size(params: EnvParams, config: DDQNConfig) -> int:
 def agent_shield(config: DDQNConfig) -> Callable:
     """``(action, state, params) -> action sent``: the BS's shield for the agent's action mode
     (no change when ``config.shield_margin`` is None)."""
-    fn = shield if config.actions == "table" else waypoint_shield
+    fn = {"table": shield, "option": option_shield}.get(config.actions, waypoint_shield)
     return lambda action, state, params: fn(action, state, params, config.shield_margin)
 
 
 @functools.cache
 def _observe(config: DDQNConfig) -> Callable:
-    return lambda state, params: agent_input(state, params, config)
+    features = lambda state, params: agent_input(state, params, config)
+    return option_observe(features) if config.actions == "option" else features
+
+
+def initial_state(inner: Any, config: DDQNConfig) -> Any:
+    """The policy state of :func:`greedy_policy` (``inner``: the weights) or :func:`explore_policy`
+    (``inner``: an :class:`Explore`) at the start of an episode: ``inner``, and for options
+    (eq. 6.4) ``(inner, no option running)``."""
+    return (inner, idle()) if config.actions == "option" else inner
+
+
+def network_input(obs: Any) -> jax.Array:
+    """The network input inside an observation of :func:`greedy_policy` (options: ``obs.x``)."""
+    return getattr(obs, "x", obs)
+
+
+def _policy(choose: Callable, config: DDQNConfig) -> Policy:
+    """The Policy that chooses ``choose(inner, x, params)`` in every slot, or, for options, at every
+    decision (``agents/options.py``), through the shield."""
+    if config.actions == "option":
+        act = option_act(choose)
+    else:
+        act = lambda inner, x, params: (choose(inner, x, params), inner)
+    return Policy(act=act, mode=config.actions, observe=_observe(config), shield=agent_shield(config))
 
 
 @functools.cache
 def greedy_policy(network: QNetwork, config: DDQNConfig) -> Policy:
-    """The trained agent: argmax Q of its input, through the shield. Policy state: the weights."""
-
-    def act(net: Any, obs: jax.Array, params: EnvParams) -> tuple[jax.Array, Any]:
-        return jnp.argmax(network.apply(net, obs)), net
-
-    return Policy(act=act, mode=config.actions, observe=_observe(config), shield=agent_shield(config))
+    """The trained agent: argmax Q of its input, through the shield. Policy state:
+    :func:`initial_state` of the weights."""
+    return _policy(lambda net, x, params: jnp.argmax(network.apply(net, x)), config)
 
 
 @struct.dataclass
@@ -77,8 +98,7 @@ class Explore:
 def explore_policy(network: QNetwork, config: DDQNConfig) -> Policy:
     """Epsilon-greedy :func:`greedy_policy` (training), through the same shield."""
 
-    def act(ps: Explore, obs: jax.Array, params: EnvParams) -> tuple[jax.Array, Explore]:
-        greedy = jnp.argmax(network.apply(ps.net, obs))
-        return jnp.where(ps.u < ps.eps, ps.random_action, greedy), ps
+    def choose(ps: Explore, x: jax.Array, params: EnvParams) -> jax.Array:
+        return jnp.where(ps.u < ps.eps, ps.random_action, jnp.argmax(network.apply(ps.net, x)))
 
-    return Policy(act=act, mode=config.actions, observe=_observe(config), shield=agent_shield(config))
+    return _policy(choose, config)

@@ -59,6 +59,15 @@ def replay_add(buf: Replay, batch: Transition) -> Replay:
     return Replay(data=data, pos=(buf.pos + n) % buf.capacity, size=jnp.minimum(buf.size + n, buf.capacity))
 
 
+def replay_add_where(buf: Replay, batch: Transition, valid: jax.Array) -> Replay:
+    """:func:`replay_add` of the transitions of ``batch`` where ``valid`` (in order); the others are dropped."""
+    slot = jnp.cumsum(valid.astype(jnp.int32)) - 1
+    idx = jnp.where(valid, (buf.pos + slot) % buf.capacity, buf.capacity)  # out of range: dropped
+    data = jax.tree.map(lambda d, b: d.at[idx].set(b.astype(d.dtype), mode="drop"), buf.data, batch)
+    n = jnp.sum(valid.astype(jnp.int32))
+    return Replay(data=data, pos=(buf.pos + n) % buf.capacity, size=jnp.minimum(buf.size + n, buf.capacity))
+
+
 def replay_sample(buf: Replay, key: jax.Array, batch_size: int) -> Transition:
     """Uniform sample (with replacement) among the ``size`` stored transitions."""
     idx = jax.random.randint(key, (batch_size,), 0, jnp.maximum(buf.size, 1))
@@ -73,6 +82,7 @@ class ReplayBuffer(NamedTuple):
     init: Callable
     add: Callable
     sample: Callable
+    add_where: Callable | None = None  # (state, batch, valid) -> state: the option agents' memory needs it
 
 
 class Sample(NamedTuple):
@@ -85,6 +95,7 @@ def ring_buffer(capacity: int, batch_size: int) -> ReplayBuffer:
         init=lambda example: replay_init(capacity, example.obs.shape[-1]),
         add=replay_add,
         sample=lambda buf, key: Sample(replay_sample(buf, key, batch_size)),
+        add_where=replay_add_where,
     )
 
 

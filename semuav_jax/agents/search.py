@@ -2,7 +2,8 @@
 improvement of the greedy agent. Every ``every`` slots the BS simulates, from the current state to
 the end of the mission with fresh delay draws, the agent itself and each of its actions sent for
 the next ``every`` slots and the agent after it, and sends the best; the Q-network is the base
-policy of every simulation (``semuav_jax.lookahead``)."""
+policy of every simulation (``semuav_jax.lookahead``). An option agent (eq. 6.4) simulates going on
+with the option it runs and starting each of its options now, the agent after each."""
 
 from __future__ import annotations
 
@@ -12,7 +13,9 @@ from typing import TYPE_CHECKING, Any
 import jax
 import jax.numpy as jnp
 
+from semuav_jax.actions import OPTION_HOME, OPTION_K, OPTION_TARGETS
 from semuav_jax.agents.network import num_actions, q_network
+from semuav_jax.agents.options import idle
 from semuav_jax.agents.policy import greedy_policy
 from semuav_jax.lookahead import Forced, Switching, forced, rollout_switching
 
@@ -23,6 +26,7 @@ if TYPE_CHECKING:
 
 SEARCH_EVERY = 8  # slots (4 s) between two decisions
 SEARCH_SAMPLES = 1  # delay draws per candidate and decision
+SEARCH_TARGETS = OPTION_TARGETS  # option agents: the nearest candidate devices whose options are simulated
 
 
 @cache
@@ -36,6 +40,21 @@ def search_switching(network: QNetwork, config: DDQNConfig, every: int, samples:
     return Switching(policy, candidate, A + 1, every, samples)
 
 
+@cache
+def option_switching(network: QNetwork, config: DDQNConfig, every: int, samples: int, targets: int) -> Switching:
+    """Candidates: c = 0 the agent going on with its option (or choosing one); c = 1 .. targets L its
+    option c - 1 (the j < ``targets`` nearest candidates, every k) started now; the last, home; the
+    agent after each."""
+    last = targets * len(OPTION_K) + 1
+
+    def candidate(net: Any, _: Any, c: jax.Array, now: Any) -> tuple[Any, Any]:
+        opt = idle() if now is None else now[1]
+        option = jnp.where(c == last, OPTION_HOME, c - 1)
+        return net, opt.replace(forced=jnp.where(c > 0, option, opt.forced).astype(jnp.int32))
+
+    return Switching(greedy_policy(network, config), candidate, last + 1, every, samples, from_state=True)
+
+
 def search_metrics(
     net: Any,
     config: DDQNConfig,
@@ -43,8 +62,13 @@ def search_metrics(
     params: EnvParams,
     every: int = SEARCH_EVERY,
     samples: int = SEARCH_SAMPLES,
+    targets: int = SEARCH_TARGETS,
 ) -> tuple[dict[str, jax.Array], jax.Array, None]:
     """Per-episode metrics of the agent with search (weights ``net`` of one seed), the (E,
     decisions) chosen candidates (0: the agent's own action) and None (no trace)."""
-    sw = search_switching(q_network(params, config), config, every, samples, num_actions(params, config))
+    network = q_network(params, config)
+    if config.actions == "option":
+        sw = option_switching(network, config, every, samples, targets)
+    else:
+        sw = search_switching(network, config, every, samples, num_actions(params, config))
     return rollout_switching(sw, keys, params, net)

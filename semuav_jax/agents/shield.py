@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 from jax.typing import ArrayLike
 
-from semuav_jax.actions import HOME, action_table, axis_levels
+from semuav_jax.actions import HOME, HOME_CODE, action_table, axis_levels
 from semuav_jax.control import airspace_cap, home_command, time_home
 from semuav_jax.params import EnvParams
 
@@ -82,3 +82,10 @@ def waypoint_shield(action: ArrayLike, state: EnvState, params: EnvParams, margi
     if margin is None:
         return action
     return jnp.where(late(state, params, margin), HOME, action)
+
+
+def option_shield(code: ArrayLike, state: EnvState, params: EnvParams, margin: float | None) -> jax.Array:
+    """The option command code (eq. 6.4) the BS sends: HOME_CODE when :func:`late`, else ``code``."""
+    if margin is None:
+        return code
+    return jnp.where(late(state, params, margin), HOME_CODE, code)

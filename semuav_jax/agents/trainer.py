@@ -24,8 +24,9 @@ from jax.typing import ArrayLike
 
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.network import QNetwork, num_actions, q_network
-from semuav_jax.agents.policy import Explore, explore_policy, input_size
+from semuav_jax.agents.policy import Explore, explore_policy, input_size, network_input
 from semuav_jax.agents.replay import ReplayBuffer, Transition, n_step_transition, replay_init, ring_buffer
+from semuav_jax.agents.smdp import option_transitions, pending_init
 from semuav_jax.engine import Policy, slot
 from semuav_jax.env import reset_state
 from semuav_jax.metrics import episode_metrics
@@ -69,7 +70,7 @@ class TrainState:
     target_params: Any
     opt_state: Any
     replay: Any  # the replay buffer's state (``replay.Replay`` by default)
-    window: Transition  # the last n_step one-step transitions of every env (leading axis n_step)
+    window: Any  # the last n_step one-step transitions of every env (leading axis n_step); options: smdp.Pending
     env_state: Any
     obs: jax.Array
     key: jax.Array
@@ -113,15 +114,17 @@ def update(tr: Trainer, ts: TrainState, key: jax.Array) -> tuple[TrainState, jax
 
 
 def env_slot(
-    tr: Trainer, key: jax.Array, state: EnvState, obs: jax.Array, ps: Explore, params: EnvParams
-) -> tuple[EnvState, jax.Array, SlotOut, jax.Array, jax.Array, dict[str, jax.Array]]:
-    """``engine.slot`` for one env, then gymnax's auto-reset (a finished episode restarts with a new layout)."""
+    tr: Trainer, key: jax.Array, state: EnvState, obs: Any, ps: Any, params: EnvParams
+) -> tuple[EnvState, Any, SlotOut, Any, jax.Array, dict[str, jax.Array], Any]:
+    """``engine.slot`` for one env, then gymnax's auto-reset (a finished episode restarts with a new
+    layout). Returns (state, obs, SlotOut, obs before the reset, done, episode metrics, policy state)."""
     k_step, k_reset = jax.random.split(key)
-    new, new_obs, _, out = slot(tr.policy, jax.random.uniform(k_step), state, obs, ps, params)
+    new, new_obs, ps, out = slot(tr.policy, jax.random.uniform(k_step), state, obs, ps, params)
     restart = reset_state(k_reset, params)
-    state = jax.tree.map(lambda r, s: jax.lax.select(new.done, r, s), restart, new)
-    obs = jax.lax.select(new.done, tr.policy.observe(restart, params), new_obs)
-    return state, obs, out, new_obs, new.done, episode_metrics(new, params)
+    select = lambda r, s: jax.lax.select(new.done, r, s)
+    state = jax.tree.map(select, restart, new)
+    obs = jax.tree.map(select, tr.policy.observe(restart, params), new_obs)
+    return state, obs, out, new_obs, new.done, episode_metrics(new, params), ps
 
 
 def env_step(
@@ -133,21 +136,36 @@ def env_step(
     n_act = num_actions(tr.env_params, tr.config)
     ps = Explore(ts.params, eps, jax.random.uniform(k_eps, (E,)), jax.random.randint(k_rand, (E,), 0, n_act))
     axes = (0, 0, 0, Explore(None, None, 0, 0), tr.env_axes)
-    state, obs, out, final_obs, done, met = jax.vmap(partial(env_slot, tr), axes)(
+    c, option = tr.config, uses_options(tr)
+    if option:
+        ps, axes = (ps, ts.window.option), axes[:3] + ((axes[3], 0), tr.env_axes)
+    state, obs, out, final_obs, done, met, ps = jax.vmap(partial(env_slot, tr), axes)(
         jax.random.split(k_env, E), ts.env_state, ts.obs, ps, tr.env_params
     )
-    c = tr.config
-    one = Transition(ts.obs, out.action, out.reward * c.reward_scale, final_obs, done.astype(jnp.float32),
-                     jnp.full((E,), c.gamma, jnp.float32))  # fmt: skip
-    window = jax.tree.map(lambda w, x: jnp.concatenate([w[1:], x[None]]), ts.window, one)
+    x, reward = network_input(ts.obs), out.reward * c.reward_scale
+    if option:  # one transition per decision (agents/smdp.py), stored here
+        batch, valid, window = option_transitions(ts.window, x, ps[1], reward, network_input(final_obs), done, c.gamma)
+        ts = ts.replace(replay=tr.buffer.add_where(ts.replay, batch, valid))
+    else:
+        disc = jnp.full((E,), c.gamma, jnp.float32)
+        one = Transition(x, out.action, reward, final_obs, done.astype(jnp.float32), disc)
+        window = jax.tree.map(lambda w, x: jnp.concatenate([w[1:], x[None]]), ts.window, one)
     return ts.replace(window=window, env_state=state, obs=obs), (done, met, jnp.mean(out.shielded.astype(jnp.float32)))
+
+
+def uses_options(tr: Trainer) -> bool:
+    """Whether the agent chooses options (eq. 6.4): one semi-MDP transition per decision."""
+    return tr.config.actions == "option"
 
 
 def store_step(
     tr: Trainer, ts: TrainState, key: jax.Array, eps: jax.Array
 ) -> tuple[TrainState, tuple[jax.Array, dict[str, jax.Array], jax.Array]]:
-    """:func:`env_step`, then the window's oldest n-step transition into the memory."""
+    """:func:`env_step`, then the window's oldest n-step transition into the memory (options:
+    :func:`env_step` stored the decisions that ended)."""
     ts, out = env_step(tr, ts, key, eps)
+    if uses_options(tr):
+        return ts, out
     return ts.replace(replay=tr.buffer.add(ts.replay, n_step_transition(ts.window, tr.config.gamma))), out
 
 
@@ -159,12 +177,16 @@ def init(tr: Trainer, key: jax.Array) -> TrainState:
     params = tr.network.init(k_net, jnp.zeros((n_in,), jnp.float32))
     states = jax.vmap(reset_state, (0, tr.env_axes))(jax.random.split(k_env, E), tr.env_params)
     empty = replay_init(E, n_in).data
+    if uses_options(tr):
+        window = pending_init(empty)
+    else:
+        window = jax.tree.map(lambda x: jnp.zeros((c.n_step,) + x.shape, x.dtype), empty)
     ts = TrainState(
         params=params,
         target_params=params,
         opt_state=tr.tx.init(params),
         replay=tr.buffer.init(jax.tree.map(lambda x: x[0], empty)),
-        window=jax.tree.map(lambda x: jnp.zeros((c.n_step,) + x.shape, x.dtype), empty),
+        window=window,
         env_state=states,
         obs=jax.vmap(tr.policy.observe, (0, tr.env_axes))(states, tr.env_params),
         key=k_run,
@@ -175,7 +197,8 @@ def init(tr: Trainer, key: jax.Array) -> TrainState:
     fill = lambda ts, k: (env_step(tr, ts, k, 1.0)[0], None)
     warm = lambda ts, k: (store_step(tr, ts, k, 1.0)[0], None)
     k_fill, k_warm = jax.random.split(k_warm)
-    ts, _ = jax.lax.scan(fill, ts, jax.random.split(k_fill, c.n_step - 1))  # fill the window
+    if not uses_options(tr):
+        ts, _ = jax.lax.scan(fill, ts, jax.random.split(k_fill, c.n_step - 1))  # fill the window
     ts, _ = jax.lax.scan(warm, ts, jax.random.split(k_warm, c.warmup_steps))
     return ts
 
@@ -228,6 +251,8 @@ def make_train(
     can move within a long compiled run. ``buffer`` replaces the replay memory (default
     ``replay.ring_buffer``)."""
     validate_params(env_params)
+    if config.actions == "option" and buffer is not None and buffer.add_where is None:
+        raise ValueError("option actions store one transition per decision: the replay memory needs add_where")
     network = q_network(env_params, config)
     updates = config.num_chunks * config.steps_per_chunk * config.updates_per_step
     lr = config.lr if config.lr_end == 1.0 else optax.cosine_decay_schedule(config.lr, updates, config.lr_end)

@@ -22,17 +22,25 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--validation",
         action="store_true",
-        help="only the agents, on --validation-episodes validation layouts at 5/25/40 kHz "
+        help="only the agents, on --validation-episodes validation layouts at 5/20/25/40 kHz "
         "(for choosing settings; writes nothing)",
+    )
+    ap.add_argument(
+        "--references",
+        action="store_true",
+        help="with --validation: also greedy-dwell and TSP-dwell, tuned on the same validation layouts",
     )
     args = ap.parse_args(argv)
     if min(args.validation_episodes, args.workers) < 1 or args.episodes < 2:
         ap.error("--episodes must be >= 2 (its intervals need two), --validation-episodes and --workers >= 1")
+    if args.references and not args.validation:
+        ap.error("--references goes with --validation")
     if len(args.run) > 1 and not args.validation:
         ap.error("several run folders need --validation")
     try:
         if args.validation:
-            print(validation_table(args.run, args.validation_episodes))
+            refs = args.references
+            print(validation_table(args.run, args.validation_episodes, references=refs, workers=args.workers))
             return 0
         r = evaluate_run(args.run[0], args.episodes, args.validation_episodes, args.workers)
     except (ValueError, KeyError, OSError) as e:

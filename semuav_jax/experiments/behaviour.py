@@ -18,7 +18,7 @@ from baselines.planner import PlanState, make_plans, planner
 from baselines.policies import POLICIES
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.network import QNetwork
-from semuav_jax.agents.policy import greedy_policy
+from semuav_jax.agents.policy import greedy_policy, initial_state
 from semuav_jax.params import EnvParams
 from semuav_jax.rollout import rollout
 from semuav_jax.stats import mean_ci
@@ -74,7 +74,7 @@ def traced_runs(
     for s in range(jax.tree.leaves(nets)[0].shape[0]):
         net = jax.tree.map(lambda x, s=s: x[s], nets)
         runs[f"agent seed {s}"] = rollout(
-            greedy_policy(network, config), keys, params, net, trace=True, state_axes=None
+            greedy_policy(network, config), keys, params, initial_state(net, config), trace=True, state_axes=None
         )
     ranks = {
         "greedy": np.broadcast_to(np.arange(params.N, dtype=np.int32), (len(keys), params.N)),

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from baselines.report import BANDWIDTHS, flights, reference_summary, summary, tune
+from baselines.report import BANDWIDTHS, best_arriving, flights, reference_summary, summary, tune
 from baselines.report_table import reference_line
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.evaluate import seed_metrics
@@ -214,10 +214,15 @@ def _evaluate_run(
 
 
 def validation_table(
-    folders: Iterable[str | os.PathLike], episodes: int = 500, bandwidths: Sequence[float] = (5e3, 25e3, 40e3)
+    folders: Iterable[str | os.PathLike],
+    episodes: int = 500,
+    bandwidths: Sequence[float] = BANDWIDTHS,
+    references: bool = False,
+    workers: int = 2,
 ) -> str:
     """Markdown: mean PSNR of every seed of each run folder on ``episodes`` layouts of
-    ``keys.VALIDATION_SEED`` at each B, the numbers settings are chosen on (test layouts untouched)."""
+    ``keys.VALIDATION_SEED`` at each B, the numbers settings are chosen on (test layouts untouched);
+    with ``references``, greedy-dwell and TSP-dwell at their knobs tuned on the same layouts."""
     from semuav_jax.agents.runs import load_run
 
     keys = episode_keys(VALIDATION_SEED, episodes)
@@ -225,10 +230,18 @@ def validation_table(
         "| run | seed | " + " | ".join(f"{b / 1e3:g} kHz" for b in bandwidths) + " |",
         "|---|---|" + "---|" * len(bandwidths),
     ]
+    params = None
     for folder in folders:
         run, nets = load_run(folder)
         params, config = run.env_params(), run.agent
         psnr = seed_metrics(q_network(params, config), nets, config, keys, params, bandwidths)["mean_psnr"].mean(-1)
         for s, row in enumerate(psnr):
             lines.append(f"| {folder} | {run.seed}:{s} | " + " | ".join(f"{x:.2f}" for x in row) + " |")
+    if references and params is not None:
+        tuned = tune(params, bandwidths, episodes, workers=workers, switch=False)
+        for name in ("greedy-dwell", "tsp-dwell"):
+            t = tuned[name]
+            best = best_arriving(np.asarray(t["mean_psnr"]), np.asarray(t["arrived"]))
+            row = [t["mean_psnr"][j][i] for j, i in enumerate(best)]
+            lines.append(f"| {name} (tuned here) | | " + " | ".join(f"{x:.2f}" for x in row) + " |")
     return "\n".join(lines)

@@ -29,7 +29,7 @@ import numpy as np
 from baselines.evaluate import baseline_metrics, resolve, tsp_ranks
 from baselines.policies import DEFAULT_V_B, POLICIES
 from semuav_jax.agents.network import q_network
-from semuav_jax.agents.policy import greedy_policy
+from semuav_jax.agents.policy import greedy_policy, initial_state
 from semuav_jax.agents.runs import MODEL_FILE, load_run, shipped_folder
 from semuav_jax.agents.scenarios import scenario_params
 from semuav_jax.curves import load_curves
@@ -157,7 +157,7 @@ def run_item(grid: dict, item: dict) -> dict:
             raise ValueError(f"policy {item['policy']!r}: the run has {len(jax.tree.leaves(nets)[0])} training seeds")
         net = jax.tree.map(lambda x: jnp.asarray(x[spec["seed"]]), nets)
         policy = greedy_policy(q_network(params, config), config)
-        m = map_episodes(lambda k: rollout(policy, k, params, net, state_axes=None)[0], keys)
+        m = map_episodes(lambda k: rollout(policy, k, params, initial_state(net, config), state_axes=None)[0], keys)
     if not np.all(m.pop("valid")):
         raise ValueError(f"item {item['hash']}: the simulation left float32 at {item['point']}")
     return {k: v.tolist() for k, v in m.items()}

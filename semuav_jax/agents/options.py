@@ -1,0 +1,100 @@
+"""Options at the BS (docs/model.md eq. 6.4, docs/ddqn.md "Options"): the agent decides which device
+to serve next and until how many symbols, and the BS flies that decision until it is done, so an
+episode is ~10 decisions instead of K slot decisions (a semi-MDP: ``agents/smdp.py`` makes its
+transitions).
+
+A running :class:`Option` is part of the policy state: ``(inner, option)``, where ``inner`` is
+what the choice needs (the weights, or the exploration draws). At every slot the option either
+goes on (its device still short of k symbols; the home option until the end) or ends, and then the
+agent chooses the next one from its input.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from semuav_jax.actions import HOME_CODE, device_order, option_code, option_fits
+
+if TYPE_CHECKING:
+    from semuav_jax.env import EnvState
+    from semuav_jax.params import EnvParams
+
+
+class OptionObs(NamedTuple):
+    """What an option agent sees: its network input, the symbols of every device, which devices
+    still fit (``actions.option_fits``) and the device order its options address
+    (``actions.device_order``)."""
+
+    x: jax.Array
+    m: jax.Array
+    fits: jax.Array
+    order: jax.Array
+
+
+@struct.dataclass
+class Option:
+    """The option running in one episode (command code, symbol target k, running?) and, of the last
+    slot, whether it was a decision and the agent's choice there; ``forced`` >= 0 makes the next
+    slot a decision for that choice (the agent with search, ``agents/search.py``)."""
+
+    code: jax.Array
+    k: jax.Array
+    active: jax.Array
+    decided: jax.Array
+    choice: jax.Array
+    forced: jax.Array
+
+
+def idle() -> Option:
+    """No option running: the next slot is a decision."""
+    i = jnp.zeros((), jnp.int32)
+    return Option(i + HOME_CODE, jnp.zeros((), jnp.float32), jnp.zeros((), bool), jnp.zeros((), bool), i, i - 1)
+
+
+def option_observe(features: Callable) -> Callable:
+    """``(state, params) -> OptionObs`` around the input ``features(state, params)``."""
+
+    def observe(state: EnvState, params: EnvParams) -> OptionObs:
+        return OptionObs(features(state, params), state.m, option_fits(state, params), device_order(state, params))
+
+    return observe
+
+
+def running(opt: Option, obs: OptionObs, params: EnvParams) -> jax.Array:
+    """Whether ``opt`` goes on: it runs, and it is the home option or its device holds fewer than
+    min(k, M) symbols."""
+    m = obs.m[jnp.maximum(opt.code, 0)]
+    return opt.active & ((opt.code == HOME_CODE) | ((m < opt.k - 1e-3) & (m < params.M - 1e-3)))
+
+
+def step_option(opt: Option, choice: jax.Array, obs: OptionObs, params: EnvParams) -> Option:
+    """The option of this slot: ``opt`` while it runs (and nothing is forced), else a decision for
+    ``choice`` (or the forced choice)."""
+    decide = ~running(opt, obs, params) | (opt.forced >= 0)
+    choice = jnp.where(opt.forced >= 0, opt.forced, choice).astype(jnp.int32)
+    code, k = option_code(choice, obs.m, obs.fits, obs.order, params)
+    return Option(
+        code=jnp.where(decide, code, opt.code),
+        k=jnp.where(decide, k, opt.k),
+        active=jnp.ones((), bool),
+        decided=decide,
+        choice=jnp.where(decide, choice, opt.choice),
+        forced=jnp.full((), -1, jnp.int32),
+    )
+
+
+def option_act(choose: Callable) -> Callable:
+    """The ``act`` of an option policy whose choice is ``choose(inner, x, params)`` (x: the network
+    input): policy state ``(inner, Option)``, action the option's command code."""
+
+    def act(ps: tuple[Any, Option], obs: OptionObs, params: EnvParams) -> tuple[jax.Array, tuple[Any, Option]]:
+        inner, opt = ps
+        opt = step_option(opt, choose(inner, obs.x, params), obs, params)
+        return opt.code, (inner, opt)
+
+    return act

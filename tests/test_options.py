@@ -1,0 +1,181 @@
+"""Options (docs/model.md eq. 6.4): codes and commands by hand, the option's life in a flight, the
+semi-MDP transitions of agents/smdp.py by hand, the masked replay write, and option training."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from semuav_jax.actions import (
+    DWELL_SPEED,
+    HOME_CODE,
+    NUM_OPTIONS,
+    OPTION_HOME,
+    OPTION_K,
+    device_order,
+    option_accel,
+    option_code,
+)
+from semuav_jax.agents.config import DDQNConfig
+from semuav_jax.agents.options import OptionObs, idle, running, step_option
+from semuav_jax.agents.replay import Transition, replay_add_where, replay_init
+from semuav_jax.agents.smdp import option_transitions, pending_init
+from semuav_jax.control import STOP_BRAKE, home_command, speed_command
+from semuav_jax.env import reset_state
+from semuav_jax.params import make_params
+
+L = len(OPTION_K)
+
+
+@pytest.fixture
+def state(params):
+    s = reset_state(jax.random.key(0), params)
+    pos = jnp.array([[100.0, 300.0], [130.0, 340.0], [50.0, 300.0], [400.0, 100.0], [900.0, 500.0],
+                     [60.0, 310.0], [700.0, 300.0], [20.0, 250.0], [500.0, 550.0], [300.0, 300.0]])  # fmt: skip
+    return s.replace(dev_pos=pos, q=jnp.array([40.0, 300.0]), v=jnp.zeros(2), m=jnp.zeros(10).at[2].set(256.0))
+
+
+def test_option_codes_by_hand(state, params):
+    """Option j L + i: the j-th nearest device short of k = OPTION_K[i] symbols (the last of them
+    when fewer), until k; the last option is home. From (40, 300) the devices nearest first are
+    5 (22.4 m), 7 (53.9 m), 0 (60 m), 1, ...; device 2 is finished; device 7 holds 20 symbols."""
+    s = state.replace(m=state.m.at[7].set(20.0))
+    order, m, fits = device_order(s, params), s.m, jnp.ones(10, bool)
+    assert list(np.asarray(order[:4])) == [5, 7, 0, 1]
+    want = {0: (5, 16.0), L: (0, 16.0), L + 1: (7, 24.0), 2 * L + 5: (0, 96.0), 3 * L: (9, 16.0)}
+    for choice, (n, k) in want.items():
+        code, kk = option_code(jnp.int32(choice), m, fits, order, params)
+        assert (int(code), float(kk)) == (n, k), choice
+    code, kk = option_code(jnp.int32(OPTION_HOME), m, fits, order, params)
+    assert int(code) == HOME_CODE and float(kk) == np.inf
+    few = jnp.full(10, 256.0).at[4].set(0.0).at[6].set(0.0)  # devices 4 and 6 short: slot 3 is the last of them
+    assert int(option_code(jnp.int32(3 * L), few, fits, device_order(s.replace(m=few), params), params)[0]) == 4
+    assert int(option_code(jnp.int32(0), jnp.full(10, 256.0), fits, order, params)[0]) == HOME_CODE
+    # device 5 no longer fits: the nearest candidate short of 16 is 7
+    assert int(option_code(jnp.int32(0), m, fits.at[5].set(False), order, params)[0]) == 0  # 7 holds 20 >= 16
+
+
+def test_options_serve_only_devices_that_fit(state, params):
+    """Eq. 7.9: a device fits while the stop there and the flight home (eqs. 7.4-7.5 at DWELL_SPEED)
+    take at most the time left plus |OPTION_MARGIN|; every device fits at t = 0."""
+    from semuav_jax.actions import OPTION_MARGIN, option_fits
+    from semuav_jax.control import time_via
+
+    assert bool(jnp.all(option_fits(state, params)))
+    need = np.array([float(time_via(state.q, state.v, p, DWELL_SPEED, params, stop=True)) for p in state.dev_pos])
+    slots = int(np.ceil((np.median(need) + OPTION_MARGIN) / params.tau))  # about half of them fit
+    late = state.replace(t=jnp.int32(params.K - slots))
+    np.testing.assert_array_equal(np.asarray(option_fits(late, params)), need + OPTION_MARGIN <= slots * params.tau)
+    assert 0 < int(np.sum(np.asarray(option_fits(late, params)))) < 10
+
+
+def test_option_zero_followed_throughout_is_greedy_dwell(params):
+    """The first option of each k, chosen at every decision, visits the nearest device short of k and
+    stays until k, as greedy-dwell with k* = k: the same PSNR within its missing time test (the
+    BS's shield flies home instead)."""
+    from baselines.dwell import dwell_metrics, greedy_dwell
+    from semuav_jax.agents.policy import _policy, initial_state
+    from semuav_jax.rollout import rollout
+
+    cfg = DDQNConfig(actions="option", shield_margin=2.0)
+    keys = jax.random.split(jax.random.key(5), 32)
+    i = OPTION_K.index(48.0)
+    pol = _policy(lambda inner, x, p: jnp.int32(i), cfg)
+    m = rollout(pol, keys, params, initial_state(jnp.zeros(()), cfg), state_axes=None)[0]
+    g = dwell_metrics(greedy_dwell, keys, params, DWELL_SPEED, 48.0, -2.0, np.zeros((32, 10), np.int32))
+    assert bool(np.all(m["arrived"]))
+    assert abs(float(m["mean_psnr"].mean()) - float(g["mean_psnr"].mean())) < 1.0
+    assert float(np.mean(m["symbol_fraction"])) > 0.9 * float(np.mean(g["symbol_fraction"]))
+
+
+def test_option_commands_by_hand(state, params):
+    """Code n: cruise at DWELL_SPEED to device n braking with STOP_BRAKE (eq. 7.3), whatever the
+    order; HOME_CODE: the home command at v_max."""
+    d7 = float(np.hypot(20.0, 50.0))
+    speed = min(DWELL_SPEED, np.sqrt(2 * STOP_BRAKE * 5.0 * d7))
+    want = speed_command(state.q, state.v, state.dev_pos[7], speed, params)
+    np.testing.assert_allclose(option_accel(jnp.int32(7), state, params), want, rtol=1e-5)
+    home = home_command(state.q, state.v, params.v_max, params)
+    np.testing.assert_allclose(option_accel(jnp.int32(HOME_CODE), state, params), home)
+
+
+def test_an_option_runs_until_its_device_holds_k_symbols(state, params):
+    """A decision fixes (device, k); the option goes on while m_n < k and ends at k; a forced choice
+    is a decision at once; the home option never ends."""
+    obs = lambda s: OptionObs(jnp.zeros(3), s.m, jnp.ones(10, bool), device_order(s, params))
+    opt = step_option(idle(), jnp.int32(L + 1), obs(state), params)  # device 7 until 24 symbols
+    assert bool(opt.decided) and (int(opt.code), float(opt.k), int(opt.choice)) == (7, 24.0, L + 1)
+    moved = state.replace(q=state.dev_pos[7], m=state.m.at[7].set(23.0))  # the order changed: 7 is first
+    nxt = step_option(opt, jnp.int32(0), obs(moved), params)
+    assert not bool(nxt.decided) and int(nxt.code) == 7 and bool(running(opt, obs(moved), params))
+    done = moved.replace(m=moved.m.at[7].set(24.0))
+    assert not bool(running(opt, obs(done), params))
+    new = step_option(opt, jnp.int32(0), obs(done), params)
+    assert bool(new.decided) and int(new.code) == 5  # from device 7, 5 (72 m) is the nearest short of 16
+    forced = step_option(opt.replace(forced=jnp.int32(OPTION_HOME)), jnp.int32(0), obs(moved), params)
+    assert bool(forced.decided) and int(forced.code) == HOME_CODE and int(forced.forced) == -1
+    home = step_option(idle(), jnp.int32(OPTION_HOME), obs(state), params)
+    assert bool(running(home, obs(state.replace(m=jnp.full(10, 256.0))), params))
+
+
+def test_semi_mdp_transitions_by_hand():
+    """One env, decisions at slots 0 and 2, the episode ends after slot 3: the first option's
+    transition is (x0, a0, r0 + g r1, x2, not done, g^2), the second (x2, a1, r2 + g r3, x4, done, g^2);
+    nothing is stored at slot 0 (no decision before it)."""
+    g = 0.9
+    x = [jnp.full((1, 2), float(i)) for i in range(5)]
+    r = [1.0, 2.0, 3.0, 4.0]
+    empty = jax.tree.map(lambda a: a[:1], replay_init(1, 2).data)
+    pend = pending_init(empty)
+    out = []
+    for t in range(4):
+        opt = jax.tree.map(lambda a: a[None], idle()).replace(
+            decided=jnp.array([t in (0, 2)]), choice=jnp.array([7 if t < 2 else 3], jnp.int32)
+        )
+        batch, valid, pend = option_transitions(pend, x[t], opt, jnp.array([r[t]]), x[t + 1], jnp.array([t == 3]), g)
+        out += [jax.tree.map(lambda a, i=i: a[i], batch) for i in range(2) if bool(valid[i])]
+    assert len(out) == 2
+    first, second = out
+    np.testing.assert_allclose(first.obs, x[0][0])
+    np.testing.assert_allclose(first.next_obs, x[2][0])
+    assert (int(first.action), float(first.done)) == (7, 0.0)
+    np.testing.assert_allclose([first.reward, first.discount], [1.0 + g * 2.0, g**2], rtol=1e-6)
+    np.testing.assert_allclose(second.obs, x[2][0])
+    np.testing.assert_allclose(second.next_obs, x[4][0])
+    assert (int(second.action), float(second.done)) == (3, 1.0)
+    np.testing.assert_allclose([second.reward, second.discount], [3.0 + g * 4.0, g**2], rtol=1e-6)
+    assert not bool(pend.started[0]) and not bool(pend.option.active[0])  # the next episode starts afresh
+
+
+def test_the_masked_write_keeps_order_and_wraps():
+    buf = replay_init(5, 1)
+    tr = lambda v: Transition(v[:, None], v.astype(jnp.int32), v, v[:, None], v * 0, v * 0 + 1)
+    buf = replay_add_where(buf, tr(jnp.arange(1.0, 5.0)), jnp.array([True, False, True, True]))
+    assert (int(buf.pos), int(buf.size)) == (3, 3)
+    assert list(np.asarray(buf.data.reward)) == [1.0, 3.0, 4.0, 0.0, 0.0]
+    buf = replay_add_where(buf, tr(jnp.arange(5.0, 9.0)), jnp.array([True, True, True, False]))
+    assert (int(buf.pos), int(buf.size)) == (1, 5)
+    assert list(np.asarray(buf.data.reward)) == [7.0, 3.0, 4.0, 5.0, 6.0]
+
+
+def test_option_training_stores_decisions_and_reproduces(curves):
+    """A short option training: every stored discount is gamma^tau for a whole tau >= 1, the memory
+    holds far fewer transitions than slots, and the same key gives the same weights."""
+    from semuav_jax.agents.trainer import make_train
+
+    params = make_params(curves, K=60)
+    cfg = DDQNConfig(actions="option", num_envs=8, steps_per_chunk=20, total_steps=8 * 20 * 3,
+                     learning_starts=64, batch_size=16, buffer_size=4096, hidden=(16,), gamma=0.95)  # fmt: skip
+    tr = make_train(cfg, params)
+    ts, m = jax.jit(tr.train)(jax.random.key(3))
+    ts2, _ = jax.jit(tr.train)(jax.random.key(3))
+    n = int(ts.replay.size)
+    slots = (cfg.warmup_steps + 60) * cfg.num_envs
+    assert 0 < n < slots / 2
+    tau = np.log(np.asarray(ts.replay.data.discount[:n])) / np.log(cfg.gamma)
+    np.testing.assert_allclose(tau, np.round(tau), atol=1e-3)
+    assert tau.min() >= 1 - 1e-3
+    assert set(np.unique(np.asarray(ts.replay.data.action[:n]))) <= set(range(NUM_OPTIONS))
+    for a, b in zip(jax.tree.leaves(ts.params), jax.tree.leaves(ts2.params)):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert np.all(np.isfinite(np.asarray(m["loss"])))
