@@ -8,7 +8,7 @@ followed throughout, since that rule is one of its candidates at every decision.
 from __future__ import annotations
 
 from functools import cache
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import jax
 import jax.numpy as jnp
@@ -42,8 +42,9 @@ def knob_table(v_c: float, margin: float, k_star: ArrayLike = SWITCH_K) -> jax.A
     return jnp.asarray(rows, jnp.float32)
 
 
-def dwell_candidate(table: jax.Array, rank: jax.Array, c: jax.Array) -> tuple[jax.Array, DwellState]:
-    """The policy state of :func:`either_dwell` for row ``c`` of :func:`knob_table`."""
+def dwell_candidate(table: jax.Array, rank: jax.Array, c: jax.Array, now: Any = None) -> tuple[jax.Array, DwellState]:
+    """The policy state of :func:`either_dwell` for row ``c`` of :func:`knob_table` (``now``, the
+    policy state at the decision, is not needed)."""
     row = table[c]
     return row[0] > 0, init_dwell(row[1], row[2], row[3], rank)
 

@@ -50,8 +50,10 @@ def hybrid(ps: HybridState, s: EnvState, params: EnvParams) -> tuple[jax.Array, 
     return jnp.where(ps.use_plan, a_plan, a_dwell), ps.replace(plan=plan)
 
 
-def hybrid_candidate(table: jax.Array, per_episode: tuple[PlanState, jax.Array], c: jax.Array) -> HybridState:
-    """Candidate 0: the plan; candidate c >= 1: row c - 1 of ``dwell_switch.knob_table``."""
+def hybrid_candidate(
+    table: jax.Array, per_episode: tuple[PlanState, jax.Array], c: jax.Array, now: Any = None
+) -> HybridState:
+    """Candidate 0: the plan; candidate c >= 1: row c - 1 of ``dwell_switch.knob_table`` (``now`` unused)."""
     plan, rank = per_episode
     return HybridState(c == 0, plan, dwell_candidate(table, rank, jnp.maximum(c - 1, 0)))
 

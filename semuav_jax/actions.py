@@ -40,7 +40,7 @@ def action_to_accel(action: ArrayLike, params: EnvParams) -> jax.Array:
 # ---------------------------------------------------------------- waypoint actions (eq. 6.2)
 
 ACTION_MODES = ("table", "waypoint", "dwell", "option")  # eqs. 6.1, 6.2, 6.3, 6.4
-ENV_ACTION_MODES = ACTION_MODES[:3]  # what an env step takes: an option needs the agent's commitment
+ENV_ACTION_MODES = ("table", "waypoint", "dwell")  # what an env step takes: an option needs the BS's policy state
 
 TARGETS = 3  # the nearest unfinished devices a waypoint action can aim at
 SPEEDS = (0.0, 6.0, 12.0, 18.0, 25.0)  # m/s; 0 = fly over the device and hover there (eq. 7.3)

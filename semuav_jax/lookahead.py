@@ -5,8 +5,9 @@ next decision. With one candidate that is the base policy itself this is rollout
 improvement; with several fixed rules it is policy switching (parallel rollout): in expectation
 never worse than the best candidate followed throughout.
 
-The candidates are ``candidate(shared, per_episode, c)`` for c = 0 .. C-1: ``shared`` (e.g. network
-weights) is the same for every episode, ``per_episode`` (e.g. a TSP order) has an episode axis.
+The candidates are ``candidate(shared, per_episode, c, now)`` for c = 0 .. C-1: ``shared`` (e.g.
+network weights) is the same for every episode, ``per_episode`` (e.g. a TSP order) has an episode
+axis, ``now`` is the policy state at the decision (None at t = 0; a candidate may go on from it).
 Episodes are those of ``rollout`` for the same keys (layouts and delays), so results pair with
 every other policy's.
 """
@@ -37,11 +38,10 @@ class Switching(NamedTuple):
     """Decisions by simulation over the candidates of ``policy`` (hashable: a static argument of jit)."""
 
     policy: Policy
-    candidate: Callable  # (shared, per_episode, c) -> policy state of candidate c
+    candidate: Callable  # (shared, per_episode, c, now) -> policy state of candidate c (now: at the decision)
     count: int  # C candidates
     every: int  # slots between two decisions
     samples: int = 1  # delay draws each candidate is simulated with (the same for every candidate)
-    from_state: bool = False  # candidate(shared, per_episode, c, policy state now; None at t = 0)
 
 
 def decision_key(key: jax.Array, i: ArrayLike) -> jax.Array:
@@ -62,12 +62,6 @@ def score(metrics: dict[str, jax.Array], params: EnvParams) -> jax.Array:
     return metrics["mean_psnr"] + ARRIVAL_DB * (metrics["arrived"].astype(jnp.float32) + spare)
 
 
-def candidate(sw: Switching, shared: Any, per_episode: Any, c: jax.Array, now: Any = None) -> Any:
-    """The policy state of candidate ``c`` (``now``: the policy state at the decision, for
-    candidates that go on from it)."""
-    return sw.candidate(shared, per_episode, c, now) if sw.from_state else sw.candidate(shared, per_episode, c)
-
-
 def choose(
     sw: Switching,
     state: EnvState,
@@ -82,7 +76,7 @@ def choose(
     keys = jax.random.split(key, sw.samples)
 
     def value(c: jax.Array) -> jax.Array:
-        ps = candidate(sw, shared, per_episode, c, now)
+        ps = sw.candidate(shared, per_episode, c, now)
         runs = jax.vmap(lambda k: episode(sw.policy, k, params, ps, init_state=state)[0])(keys)
         return jnp.mean(score(runs, params))
 
@@ -105,12 +99,12 @@ def switching_episode(
     def period(c: Any, xs: tuple[jax.Array, jax.Array]) -> tuple[Any, tuple[jax.Array, Any]]:
         draws, i = xs
         best, _ = choose(sw, c.state, shared, per_episode, decision_key(key, i), params, c.policy_state)
-        ps = candidate(sw, shared, per_episode, best, c.policy_state)
+        ps = sw.candidate(shared, per_episode, best, c.policy_state)
         c = c._replace(policy_state=ps, obs=observe(sw.policy, c.state, params))
         c, tr = jax.lax.scan(scan_body(sw.policy, params, trace), c, draws)  # slots after t = K are frozen
         return c, (best, tr)
 
-    c0 = start(sw.policy, state, candidate(sw, shared, per_episode, jnp.zeros((), jnp.int32)), params)
+    c0 = start(sw.policy, state, sw.candidate(shared, per_episode, jnp.zeros((), jnp.int32), None), params)
     c, (chosen, tr) = jax.lax.scan(period, c0, (u, jnp.arange(periods)))
     if trace:  # (periods, every, ...) -> the K slots of the episode
         tr = jax.tree.map(lambda x: x.reshape((periods * sw.every,) + x.shape[2:])[: params.K], tr)

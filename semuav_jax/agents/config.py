@@ -114,10 +114,15 @@ class DDQNConfig:
             )
 
     @property
+    def uses_options(self) -> bool:
+        """Whether the agent chooses options (eq. 6.4): one semi-MDP transition per decision."""
+        return self.actions == "option"
+
+    @property
     def warmup_steps(self) -> int:
         """Vmapped env steps of the random warm-up that fills the memory to about ``learning_starts``
         (options store one transition per decision, about every SLOTS_PER_OPTION slots)."""
-        per = SLOTS_PER_OPTION if self.actions == "option" else 1
+        per = SLOTS_PER_OPTION if self.uses_options else 1
         return -(-self.learning_starts * per // self.num_envs)
 
     @property

@@ -56,6 +56,11 @@ def idle() -> Option:
     return Option(i + HOME_CODE, jnp.zeros((), jnp.float32), jnp.zeros((), bool), jnp.zeros((), bool), i, i - 1)
 
 
+def idle_batch(shape: tuple[int, ...]) -> Option:
+    """:func:`idle` for every entry of a batch of ``shape``."""
+    return jax.tree.map(lambda x: jnp.broadcast_to(x, shape + x.shape), idle())
+
+
 def option_observe(features: Callable) -> Callable:
     """``(state, params) -> OptionObs`` around the input ``features(state, params)``."""
 

@@ -12,10 +12,11 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from semuav_jax.actions import HOME, HOME_CODE
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.features import table_features, waypoint_features
 from semuav_jax.agents.options import idle, option_act, option_observe
-from semuav_jax.agents.shield import option_shield, shield, waypoint_shield
+from semuav_jax.agents.shield import shield, waypoint_shield
 from semuav_jax.engine import Policy
 from semuav_jax.env import reset_state
 from semuav_jax.observation import observation
@@ -44,21 +45,23 @@ def input_size(params: EnvParams, config: DDQNConfig) -> int:
 def agent_shield(config: DDQNConfig) -> Callable:
     """``(action, state, params) -> action sent``: the BS's shield for the agent's action mode
     (no change when ``config.shield_margin`` is None)."""
-    fn = {"table": shield, "option": option_shield}.get(config.actions, waypoint_shield)
-    return lambda action, state, params: fn(action, state, params, config.shield_margin)
+    if config.actions == "table":
+        return lambda action, state, params: shield(action, state, params, config.shield_margin)
+    home = HOME_CODE if config.uses_options else HOME
+    return lambda action, state, params: waypoint_shield(action, state, params, config.shield_margin, home)
 
 
 @functools.cache
 def _observe(config: DDQNConfig) -> Callable:
     features = lambda state, params: agent_input(state, params, config)
-    return option_observe(features) if config.actions == "option" else features
+    return option_observe(features) if config.uses_options else features
 
 
 def initial_state(inner: Any, config: DDQNConfig) -> Any:
     """The policy state of :func:`greedy_policy` (``inner``: the weights) or :func:`explore_policy`
     (``inner``: an :class:`Explore`) at the start of an episode: ``inner``, and for options
     (eq. 6.4) ``(inner, no option running)``."""
-    return (inner, idle()) if config.actions == "option" else inner
+    return (inner, idle()) if config.uses_options else inner
 
 
 def network_input(obs: Any) -> jax.Array:
@@ -69,7 +72,7 @@ def network_input(obs: Any) -> jax.Array:
 def _policy(choose: Callable, config: DDQNConfig) -> Policy:
     """The Policy that chooses ``choose(inner, x, params)`` in every slot, or, for options, at every
     decision (``agents/options.py``), through the shield."""
-    if config.actions == "option":
+    if config.uses_options:
         act = option_act(choose)
     else:
         act = lambda inner, x, params: (choose(inner, x, params), inner)

@@ -53,14 +53,12 @@ def replay_init(capacity: int, obs_dim: int) -> Replay:
 
 def replay_add(buf: Replay, batch: Transition) -> Replay:
     """Write a batch of B transitions at pos, pos+1, ... (mod capacity), overwriting the oldest."""
-    n = batch.done.shape[0]
-    idx = (buf.pos + jnp.arange(n)) % buf.capacity
-    data = jax.tree.map(lambda d, b: d.at[idx].set(b.astype(d.dtype)), buf.data, batch)
-    return Replay(data=data, pos=(buf.pos + n) % buf.capacity, size=jnp.minimum(buf.size + n, buf.capacity))
+    return replay_add_where(buf, batch, jnp.ones(batch.done.shape[:1], bool))
 
 
 def replay_add_where(buf: Replay, batch: Transition, valid: jax.Array) -> Replay:
-    """:func:`replay_add` of the transitions of ``batch`` where ``valid`` (in order); the others are dropped."""
+    """:func:`replay_add` of the transitions of ``batch`` where ``valid``, in order, at pos, pos+1, ...
+    (mod capacity); the others are dropped."""
     slot = jnp.cumsum(valid.astype(jnp.int32)) - 1
     idx = jnp.where(valid, (buf.pos + slot) % buf.capacity, buf.capacity)  # out of range: dropped
     data = jax.tree.map(lambda d, b: d.at[idx].set(b.astype(d.dtype), mode="drop"), buf.data, batch)

@@ -34,7 +34,7 @@ def search_switching(network: QNetwork, config: DDQNConfig, every: int, samples:
     """Candidates: c = 0 the agent; c = 1 .. A its action c - 1 for ``every`` slots, then the agent."""
     policy = forced(greedy_policy(network, config))
 
-    def candidate(net: Any, _: Any, c: jax.Array) -> Forced:
+    def candidate(net: Any, _: Any, c: jax.Array, now: Any = None) -> Forced:
         return Forced(net, jnp.maximum(c - 1, 0).astype(jnp.int32), jnp.where(c > 0, every, 0).astype(jnp.int32))
 
     return Switching(policy, candidate, A + 1, every, samples)
@@ -52,7 +52,7 @@ def option_switching(network: QNetwork, config: DDQNConfig, every: int, samples:
         option = jnp.where(c == last, OPTION_HOME, c - 1)
         return net, opt.replace(forced=jnp.where(c > 0, option, opt.forced).astype(jnp.int32))
 
-    return Switching(greedy_policy(network, config), candidate, last + 1, every, samples, from_state=True)
+    return Switching(greedy_policy(network, config), candidate, last + 1, every, samples)
 
 
 def search_metrics(
@@ -67,7 +67,7 @@ def search_metrics(
     """Per-episode metrics of the agent with search (weights ``net`` of one seed), the (E,
     decisions) chosen candidates (0: the agent's own action) and None (no trace)."""
     network = q_network(params, config)
-    if config.actions == "option":
+    if config.uses_options:
         sw = option_switching(network, config, every, samples, targets)
     else:
         sw = search_switching(network, config, every, samples, num_actions(params, config))

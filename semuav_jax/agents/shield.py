@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 from jax.typing import ArrayLike
 
-from semuav_jax.actions import HOME, HOME_CODE, action_table, axis_levels
+from semuav_jax.actions import HOME, action_table, axis_levels
 from semuav_jax.control import airspace_cap, home_command, time_home
 from semuav_jax.params import EnvParams
 
@@ -76,16 +76,12 @@ def shield(action: ArrayLike, state: EnvState, params: EnvParams, margin: float 
     )
 
 
-def waypoint_shield(action: ArrayLike, state: EnvState, params: EnvParams, margin: float | None) -> jax.Array:
-    """The waypoint action (eq. 6.2) the BS sends: HOME when :func:`late`, else ``action`` (the
-    controller of eq. 7.1 already keeps every waypoint command inside the airspace)."""
+def waypoint_shield(
+    action: ArrayLike, state: EnvState, params: EnvParams, margin: float | None, home: int = HOME
+) -> jax.Array:
+    """The waypoint action (eq. 6.2) the BS sends: ``home`` (HOME; HOME_CODE for an option's command
+    code, eq. 6.4) when :func:`late`, else ``action`` (the controller of eq. 7.1 already keeps every
+    waypoint and option command inside the airspace)."""
     if margin is None:
         return action
-    return jnp.where(late(state, params, margin), HOME, action)
-
-
-def option_shield(code: ArrayLike, state: EnvState, params: EnvParams, margin: float | None) -> jax.Array:
-    """The option command code (eq. 6.4) the BS sends: HOME_CODE when :func:`late`, else ``code``."""
-    if margin is None:
-        return code
-    return jnp.where(late(state, params, margin), HOME_CODE, code)
+    return jnp.where(late(state, params, margin), home, action)

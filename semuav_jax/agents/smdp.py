@@ -11,7 +11,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from semuav_jax.agents.options import Option, idle
+from semuav_jax.agents.options import Option, idle_batch
 from semuav_jax.agents.replay import Transition
 
 
@@ -29,7 +29,7 @@ class Pending:
 def pending_init(empty: Transition) -> Pending:
     """Nothing under way in any env (``empty``: zero transitions with a leading env axis)."""
     E = empty.done.shape[0]
-    return Pending(empty, jnp.zeros((E,), bool), jax.tree.map(lambda x: jnp.broadcast_to(x, (E,) + x.shape), idle()))
+    return Pending(empty, jnp.zeros((E,), bool), idle_batch((E,)))
 
 
 def option_transitions(
@@ -49,5 +49,5 @@ def option_transitions(
     batch = jax.tree.map(lambda a, b: jnp.concatenate([a, b]), ended, last)
     valid = jnp.concatenate([opt.decided & pend.started, done])
     reset = lambda a, b: jnp.where(done.reshape((-1,) + (1,) * (a.ndim - 1)), a, b)
-    option = jax.tree.map(reset, jax.tree.map(lambda y: jnp.broadcast_to(y, done.shape + y.shape), idle()), opt)
+    option = jax.tree.map(reset, idle_batch(done.shape), opt)
     return batch, valid, Pending(cur, ~done, option)

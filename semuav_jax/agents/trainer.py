@@ -136,7 +136,7 @@ def env_step(
     n_act = num_actions(tr.env_params, tr.config)
     ps = Explore(ts.params, eps, jax.random.uniform(k_eps, (E,)), jax.random.randint(k_rand, (E,), 0, n_act))
     axes = (0, 0, 0, Explore(None, None, 0, 0), tr.env_axes)
-    c, option = tr.config, uses_options(tr)
+    c, option = tr.config, tr.config.uses_options
     if option:
         ps, axes = (ps, ts.window.option), axes[:3] + ((axes[3], 0), tr.env_axes)
     state, obs, out, final_obs, done, met, ps = jax.vmap(partial(env_slot, tr), axes)(
@@ -153,18 +153,13 @@ def env_step(
     return ts.replace(window=window, env_state=state, obs=obs), (done, met, jnp.mean(out.shielded.astype(jnp.float32)))
 
 
-def uses_options(tr: Trainer) -> bool:
-    """Whether the agent chooses options (eq. 6.4): one semi-MDP transition per decision."""
-    return tr.config.actions == "option"
-
-
 def store_step(
     tr: Trainer, ts: TrainState, key: jax.Array, eps: jax.Array
 ) -> tuple[TrainState, tuple[jax.Array, dict[str, jax.Array], jax.Array]]:
     """:func:`env_step`, then the window's oldest n-step transition into the memory (options:
     :func:`env_step` stored the decisions that ended)."""
     ts, out = env_step(tr, ts, key, eps)
-    if uses_options(tr):
+    if tr.config.uses_options:
         return ts, out
     return ts.replace(replay=tr.buffer.add(ts.replay, n_step_transition(ts.window, tr.config.gamma))), out
 
@@ -177,7 +172,7 @@ def init(tr: Trainer, key: jax.Array) -> TrainState:
     params = tr.network.init(k_net, jnp.zeros((n_in,), jnp.float32))
     states = jax.vmap(reset_state, (0, tr.env_axes))(jax.random.split(k_env, E), tr.env_params)
     empty = replay_init(E, n_in).data
-    if uses_options(tr):
+    if tr.config.uses_options:
         window = pending_init(empty)
     else:
         window = jax.tree.map(lambda x: jnp.zeros((c.n_step,) + x.shape, x.dtype), empty)
@@ -197,7 +192,7 @@ def init(tr: Trainer, key: jax.Array) -> TrainState:
     fill = lambda ts, k: (env_step(tr, ts, k, 1.0)[0], None)
     warm = lambda ts, k: (store_step(tr, ts, k, 1.0)[0], None)
     k_fill, k_warm = jax.random.split(k_warm)
-    if not uses_options(tr):
+    if not tr.config.uses_options:
         ts, _ = jax.lax.scan(fill, ts, jax.random.split(k_fill, c.n_step - 1))  # fill the window
     ts, _ = jax.lax.scan(warm, ts, jax.random.split(k_warm, c.warmup_steps))
     return ts
@@ -251,7 +246,7 @@ def make_train(
     can move within a long compiled run. ``buffer`` replaces the replay memory (default
     ``replay.ring_buffer``)."""
     validate_params(env_params)
-    if config.actions == "option" and buffer is not None and buffer.add_where is None:
+    if config.uses_options and buffer is not None and buffer.add_where is None:
         raise ValueError("option actions store one transition per decision: the replay memory needs add_where")
     network = q_network(env_params, config)
     updates = config.num_chunks * config.steps_per_chunk * config.updates_per_step
