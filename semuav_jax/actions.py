@@ -98,7 +98,8 @@ def dwell_accel(action: ArrayLike, state: EnvState, params: EnvParams) -> jax.Ar
 
 # ---------------------------------------------------------------- options (eq. 6.4)
 
-OPTION_TARGETS = 4  # an option serves one of the 4 nearest devices short of its k
+OPTION_TARGETS = 4  # an option serves the 1st or 2nd candidate of the tour (eq. 6.5), or the nearest or 2nd nearest
+TOUR_TARGETS = 2  # targets j < TOUR_TARGETS count along the tour, the others by distance
 OPTION_K = (16.0, 24.0, 32.0, 48.0, 64.0, 96.0)  # symbols: "serve until k" of the options
 OPTION_MARGIN = -2.0  # s: the time margin of eq. 7.9, that of the tuned dwell rules (docs/baselines.md)
 OPTION_HOME = OPTION_TARGETS * len(OPTION_K)  # the last option: fly home
@@ -115,21 +116,24 @@ def option_fits(state: EnvState, params: EnvParams) -> jax.Array:
 
 
 def option_code(
-    choice: ArrayLike, m: ArrayLike, fits: ArrayLike, order: ArrayLike, params: EnvParams
+    choice: ArrayLike, m: ArrayLike, fits: ArrayLike, order: ArrayLike, tour: ArrayLike, params: EnvParams
 ) -> tuple[jax.Array, jax.Array]:
     """Eq. 6.4: the command code and the symbol target k of option ``choice``, given the symbols
-    ``m``, :func:`option_fits` and the devices in :func:`device_order`. Option j * len(OPTION_K) + i
-    serves the j-th nearest device n among the candidates of eq. 7.9 for k = OPTION_K[i] (short of
-    k symbols, and it fits) (the last of them when fewer than j + 1 are) until it holds k: code n,
-    fixed at the decision whatever the order becomes. Option j = 0 followed throughout is
-    greedy-dwell with k* = k and margin OPTION_MARGIN (eq. 7.10). OPTION_HOME, or no candidate, is
-    HOME_CODE (k = inf)."""
+    ``m``, :func:`option_fits`, the devices in :func:`device_order` and in the order of the tour
+    (``semuav_jax.tour.tour_order``, eq. 6.5). The candidates for k = OPTION_K[i] are the devices short
+    of k symbols that fit (eq. 7.9); option j * len(OPTION_K) + i serves, until it holds k, the j-th
+    candidate along the tour for j < TOUR_TARGETS, else the (j - TOUR_TARGETS)-th nearest (the last
+    candidate when there are fewer): code n, fixed at the decision whatever the orders become.
+    Option 0 followed throughout is TSP-dwell on the re-planned tour with k* = k, option
+    TOUR_TARGETS * len(OPTION_K) greedy-dwell (eq. 7.10), both with margin OPTION_MARGIN.
+    OPTION_HOME, or no candidate, is HOME_CODE (k = inf)."""
     L = len(OPTION_K)
     k = jnp.asarray(OPTION_K)[jnp.minimum(choice, OPTION_HOME - 1) % L]
-    order = jnp.asarray(order)
+    target = choice // L
+    order = jnp.where(target < TOUR_TARGETS, jnp.asarray(tour), jnp.asarray(order))
     short = (jnp.asarray(m)[order] < k - 1e-3) & jnp.asarray(fits)[order]
     rank = jnp.cumsum(short) - 1
-    j = jnp.minimum(choice // L, jnp.sum(short) - 1)
+    j = jnp.minimum(jnp.where(target < TOUR_TARGETS, target, target - TOUR_TARGETS), jnp.sum(short) - 1)
     n = order[jnp.argmax(short & (rank == j))]
     home = (choice >= OPTION_HOME) | ~jnp.any(short)
     return jnp.where(home, HOME_CODE, n).astype(jnp.int32), jnp.where(home, jnp.inf, k)

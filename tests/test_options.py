@@ -12,6 +12,7 @@ from semuav_jax.actions import (
     NUM_OPTIONS,
     OPTION_HOME,
     OPTION_K,
+    TOUR_TARGETS,
     device_order,
     option_accel,
     option_code,
@@ -36,23 +37,30 @@ def state(params):
 
 
 def test_option_codes_by_hand(state, params):
-    """Option j L + i: the j-th nearest device short of k = OPTION_K[i] symbols (the last of them
-    when fewer), until k; the last option is home. From (40, 300) the devices nearest first are
-    5 (22.4 m), 7 (53.9 m), 0 (60 m), 1, ...; device 2 is finished; device 7 holds 20 symbols."""
+    """Option j L + i serves, until k = OPTION_K[i], the j-th candidate along the tour for j <
+    TOUR_TARGETS, else the (j - TOUR_TARGETS)-th nearest (the last candidate when fewer); the last
+    option is home. From (40, 300) the devices nearest first are 5 (22.4 m), 7 (53.9 m), 0 (60 m),
+    1, ...; device 2 is finished; device 7 holds 20 symbols; the tour here is given by hand."""
     s = state.replace(m=state.m.at[7].set(20.0))
     order, m, fits = device_order(s, params), s.m, jnp.ones(10, bool)
+    tour = jnp.array([9, 7, 3, 6, 4, 8, 1, 0, 5, 2])
     assert list(np.asarray(order[:4])) == [5, 7, 0, 1]
-    want = {0: (5, 16.0), L: (0, 16.0), L + 1: (7, 24.0), 2 * L + 5: (0, 96.0), 3 * L: (9, 16.0)}
+    near = TOUR_TARGETS * L
+    want = {0: (9, 16.0), 1: (9, 24.0), L: (3, 16.0), L + 1: (7, 24.0), near: (5, 16.0), near + L: (0, 16.0),
+            near + L + 1: (7, 24.0), near + 5: (5, 96.0)}  # fmt: skip
     for choice, (n, k) in want.items():
-        code, kk = option_code(jnp.int32(choice), m, fits, order, params)
+        code, kk = option_code(jnp.int32(choice), m, fits, order, tour, params)
         assert (int(code), float(kk)) == (n, k), choice
-    code, kk = option_code(jnp.int32(OPTION_HOME), m, fits, order, params)
+    code, kk = option_code(jnp.int32(OPTION_HOME), m, fits, order, tour, params)
     assert int(code) == HOME_CODE and float(kk) == np.inf
-    few = jnp.full(10, 256.0).at[4].set(0.0).at[6].set(0.0)  # devices 4 and 6 short: slot 3 is the last of them
-    assert int(option_code(jnp.int32(3 * L), few, fits, device_order(s.replace(m=few), params), params)[0]) == 4
-    assert int(option_code(jnp.int32(0), jnp.full(10, 256.0), fits, order, params)[0]) == HOME_CODE
-    # device 5 no longer fits: the nearest candidate short of 16 is 7
-    assert int(option_code(jnp.int32(0), m, fits.at[5].set(False), order, params)[0]) == 0  # 7 holds 20 >= 16
+    few = jnp.full(10, 256.0).at[4].set(0.0).at[6].set(0.0)  # devices 4 and 6 short
+    assert int(option_code(jnp.int32(L), few, fits, order, tour, params)[0]) == 4  # 6 first on the tour, then 4
+    assert (
+        int(option_code(jnp.int32(near + L), few, fits, device_order(s.replace(m=few), params), tour, params)[0]) == 4
+    )
+    assert int(option_code(jnp.int32(0), jnp.full(10, 256.0), fits, order, tour, params)[0]) == HOME_CODE
+    # device 5 no longer fits: the nearest candidate short of 16 is 0 (7 holds 20 >= 16)
+    assert int(option_code(jnp.int32(near), m, fits.at[5].set(False), order, tour, params)[0]) == 0
 
 
 def test_options_serve_only_devices_that_fit(state, params):
@@ -69,23 +77,30 @@ def test_options_serve_only_devices_that_fit(state, params):
     assert 0 < int(np.sum(np.asarray(option_fits(late, params)))) < 10
 
 
-def test_option_zero_followed_throughout_is_greedy_dwell(params):
-    """The first option of each k, chosen at every decision, visits the nearest device short of k and
-    stays until k, as greedy-dwell with k* = k: the same PSNR within its missing time test (the
-    BS's shield flies home instead)."""
-    from baselines.dwell import dwell_metrics, greedy_dwell
+def test_constant_options_are_the_dwell_rules(params):
+    """The first nearest option of one k, chosen at every decision, visits the nearest device short
+    of k and stays until k, as greedy-dwell with k* = k; option i (the first along the re-planned
+    tour) flies as TSP-dwell does on the shortest path: the same PSNR within the missing time test
+    (the BS's shield flies home instead) and the tour's few metres."""
+    from baselines.dwell import dwell_metrics, greedy_dwell, tsp_dwell
+    from baselines.evaluate import tsp_ranks
     from semuav_jax.agents.policy import _policy, initial_state
     from semuav_jax.rollout import rollout
 
     cfg = DDQNConfig(actions="option", shield_margin=2.0)
     keys = jax.random.split(jax.random.key(5), 32)
     i = OPTION_K.index(48.0)
-    pol = _policy(lambda inner, x, p: jnp.int32(i), cfg)
-    m = rollout(pol, keys, params, initial_state(jnp.zeros(()), cfg), state_axes=None)[0]
-    g = dwell_metrics(greedy_dwell, keys, params, DWELL_SPEED, 48.0, -2.0, np.zeros((32, 10), np.int32))
-    assert bool(np.all(m["arrived"]))
-    assert abs(float(m["mean_psnr"].mean()) - float(g["mean_psnr"].mean())) < 1.0
-    assert float(np.mean(m["symbol_fraction"])) > 0.9 * float(np.mean(g["symbol_fraction"]))
+    rank = np.asarray(tsp_ranks(keys, params, workers=1))
+    for choice, rule, ranks in (
+        (TOUR_TARGETS * L + i, greedy_dwell, np.zeros((32, 10), np.int32)),
+        (i, tsp_dwell, rank),
+    ):
+        pol = _policy(lambda inner, x, p, c=choice: jnp.int32(c), cfg)
+        m = rollout(pol, keys, params, initial_state(jnp.zeros(()), cfg), state_axes=None)[0]
+        g = dwell_metrics(rule, keys, params, DWELL_SPEED, 48.0, -2.0, ranks)
+        assert bool(np.all(m["arrived"]))
+        assert abs(float(m["mean_psnr"].mean()) - float(g["mean_psnr"].mean())) < 1.0, rule
+        assert float(np.mean(m["symbol_fraction"])) > 0.9 * float(np.mean(g["symbol_fraction"]))
 
 
 def test_option_commands_by_hand(state, params):
@@ -102,15 +117,16 @@ def test_option_commands_by_hand(state, params):
 def test_an_option_runs_until_its_device_holds_k_symbols(state, params):
     """A decision fixes (device, k); the option goes on while m_n < k and ends at k; a forced choice
     is a decision at once; the home option never ends."""
-    obs = lambda s: OptionObs(jnp.zeros(3), s.m, jnp.ones(10, bool), device_order(s, params))
-    opt = step_option(idle(), jnp.int32(L + 1), obs(state), params)  # device 7 until 24 symbols
-    assert bool(opt.decided) and (int(opt.code), float(opt.k), int(opt.choice)) == (7, 24.0, L + 1)
+    obs = lambda s: OptionObs(jnp.zeros(3), s.m, jnp.ones(10, bool), device_order(s, params), s.q, s.dev_pos)
+    near = TOUR_TARGETS * L
+    opt = step_option(idle(), jnp.int32(near + L + 1), obs(state), params)  # device 7 until 24 symbols
+    assert bool(opt.decided) and (int(opt.code), float(opt.k), int(opt.choice)) == (7, 24.0, near + L + 1)
     moved = state.replace(q=state.dev_pos[7], m=state.m.at[7].set(23.0))  # the order changed: 7 is first
-    nxt = step_option(opt, jnp.int32(0), obs(moved), params)
+    nxt = step_option(opt, jnp.int32(near), obs(moved), params)
     assert not bool(nxt.decided) and int(nxt.code) == 7 and bool(running(opt, obs(moved), params))
     done = moved.replace(m=moved.m.at[7].set(24.0))
     assert not bool(running(opt, obs(done), params))
-    new = step_option(opt, jnp.int32(0), obs(done), params)
+    new = step_option(opt, jnp.int32(near), obs(done), params)
     assert bool(new.decided) and int(new.code) == 5  # from device 7, 5 (72 m) is the nearest short of 16
     forced = step_option(opt.replace(forced=jnp.int32(OPTION_HOME)), jnp.int32(0), obs(moved), params)
     assert bool(forced.decided) and int(forced.code) == HOME_CODE and int(forced.forced) == -1

@@ -18,7 +18,8 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from semuav_jax.actions import HOME_CODE, device_order, option_code, option_fits
+from semuav_jax.actions import HOME_CODE, OPTION_K, device_order, option_code, option_fits
+from semuav_jax.tour import tour_order
 
 if TYPE_CHECKING:
     from semuav_jax.env import EnvState
@@ -27,13 +28,16 @@ if TYPE_CHECKING:
 
 class OptionObs(NamedTuple):
     """What an option agent sees: its network input, the symbols of every device, which devices
-    still fit (``actions.option_fits``) and the device order its options address
-    (``actions.device_order``)."""
+    still fit (``actions.option_fits``), the devices nearest first (``actions.device_order``), and
+    the UAV's and the devices' positions, which the tour its options follow is planned from
+    (``semuav_jax.tour``; planned when acting, not here, as training observes each state twice)."""
 
     x: jax.Array
     m: jax.Array
     fits: jax.Array
     order: jax.Array
+    q: jax.Array
+    dev_pos: jax.Array
 
 
 @struct.dataclass
@@ -65,7 +69,8 @@ def option_observe(features: Callable) -> Callable:
     """``(state, params) -> OptionObs`` around the input ``features(state, params)``."""
 
     def observe(state: EnvState, params: EnvParams) -> OptionObs:
-        return OptionObs(features(state, params), state.m, option_fits(state, params), device_order(state, params))
+        fits, order = option_fits(state, params), device_order(state, params)
+        return OptionObs(features(state, params), state.m, fits, order, state.q, state.dev_pos)
 
     return observe
 
@@ -82,7 +87,8 @@ def step_option(opt: Option, choice: jax.Array, obs: OptionObs, params: EnvParam
     ``choice`` (or the forced choice)."""
     decide = ~running(opt, obs, params) | (opt.forced >= 0)
     choice = jnp.where(opt.forced >= 0, opt.forced, choice).astype(jnp.int32)
-    code, k = option_code(choice, obs.m, obs.fits, obs.order, params)
+    tour = tour_order(obs.q, obs.dev_pos, obs.fits & (obs.m < OPTION_K[0] - 1e-3), params.q_fin)
+    code, k = option_code(choice, obs.m, obs.fits, obs.order, tour, params)
     return Option(
         code=jnp.where(decide, code, opt.code),
         k=jnp.where(decide, k, opt.k),

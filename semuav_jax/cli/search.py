@@ -1,6 +1,6 @@
 """The agent with search at the BS against the reactive agent, TSP-dwell and dwell-switch
 
-``semuav-search RUN_FOLDER [--episodes 100] [--every 8] [--json out.json]``: the table of
+``semuav-search RUN_FOLDER [--episodes 100] [--every 8] [--targets 4] [--validation] [--json out.json]``: the table of
 ``semuav_jax.experiments.search`` for a finished train.py run folder whose eval.json holds the
 dwell tuning (docs/ddqn.md, "The agent with search"), printed as Markdown.
 """
@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from semuav_jax.agents.search import SEARCH_EVERY
+from semuav_jax.agents.search import SEARCH_EVERY, SEARCH_TARGETS
 from semuav_jax.experiments.search import compare_search, markdown
 from semuav_jax.io import atomic_write
 
@@ -20,10 +20,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("folder", help="a finished train.py run folder with its eval.json")
     ap.add_argument("--episodes", type=int, default=100, help="test layouts (the first of keys.TEST_SEED)")
     ap.add_argument("--every", type=int, default=SEARCH_EVERY, help="slots between two decisions")
+    ap.add_argument("--targets", type=int, default=SEARCH_TARGETS, help="option agents: candidate devices per decision")
+    ap.add_argument("--validation", action="store_true", help="validation layouts (keys.VALIDATION_SEED): for choosing")
     ap.add_argument("--json", help="write the numbers here (atomically)")
     args = ap.parse_args(argv)
     try:
-        r = compare_search(args.folder, args.episodes, every=args.every)
+        r = compare_search(
+            args.folder, args.episodes, every=args.every, targets=args.targets, validation=args.validation
+        )
     except ValueError as e:
         ap.error(str(e))
     print(markdown(r))

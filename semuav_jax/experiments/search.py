@@ -1,8 +1,9 @@
-"""The agent with search at the BS against the reactive agent, TSP-dwell and dwell-switch
-(docs/ddqn.md, "The agent with search"): every training seed, with and without search, on the same
-first ``episodes`` test layouts (``keys.TEST_SEED``) as the two dwell references at the knobs the
-run's eval.json chose on validation layouts. Margins are per-episode paired differences; across
-seeds, the mean of the seeds' means with its t interval. No seed is selected.
+"""The agent with search at the BS against the reactive agent, TSP-dwell, dwell-switch, the exact
+planner and the certified bound (docs/ddqn.md, "The agent with search"): every training seed, with
+and without search, on the same first ``episodes`` test layouts (``keys.TEST_SEED``; validation
+layouts, ``keys.VALIDATION_SEED``, for choosing the search's knobs) as the references, the dwell
+rules at the knobs the run's eval.json chose on validation layouts. Margins are per-episode paired
+differences; across seeds, the mean of the seeds' means with its t interval. No seed is selected.
 
 The command line: ``semuav-search RUN_FOLDER [--episodes 100] [--json out.json]``
 (``semuav_jax.cli.search``).
@@ -19,18 +20,21 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from baselines import receding
+from baselines.bound import psnr_bound
 from baselines.dwell import dwell_metrics, tsp_dwell
 from baselines.evaluate import tsp_ranks
 from baselines.report import BANDWIDTHS, switch_metrics
+from baselines.travel_bound import travel_bound
 from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.network import q_network
 from semuav_jax.agents.runs import EVAL_FILE, load_run
-from semuav_jax.agents.search import SEARCH_EVERY, search_metrics
-from semuav_jax.keys import TEST_SEED, episode_keys
+from semuav_jax.agents.search import SEARCH_EVERY, SEARCH_TARGETS, search_metrics
+from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.sharding import map_episodes
 from semuav_jax.stats import mean_ci, pm
 
-VERSUS = ("agent", "tsp-dwell", "dwell-switch")
+VERSUS = ("agent", "tsp-dwell", "dwell-switch", "exact planner")
 
 
 def compare_search(
@@ -38,9 +42,12 @@ def compare_search(
     episodes: int = 100,
     bandwidths: Sequence[float] = BANDWIDTHS,
     every: int = SEARCH_EVERY,
+    targets: int = SEARCH_TARGETS,
+    validation: bool = False,
     log: Callable[[str], None] = print,
 ) -> dict:
-    """Every number of the table (JSON-ready); the dwell knobs come from ``folder``'s eval.json."""
+    """Every number of the table (JSON-ready); the dwell knobs come from ``folder``'s eval.json.
+    ``targets``: the candidate devices of an option agent's search (``agents/search.py``)."""
     if episodes < 2:
         raise ValueError(f"episodes must be >= 2 (an interval needs two), got {episodes}")
     run, nets = load_run(folder)
@@ -60,7 +67,8 @@ def compare_search(
         raise ValueError(f"{folder}/{EVAL_FILE} has no dwell tuning at B = {missing}")
     params = run.env_params()
     network = q_network(params, run.agent)
-    keys = episode_keys(TEST_SEED, episodes)
+    seed = VALIDATION_SEED if validation else TEST_SEED
+    keys = episode_keys(seed, episodes)
     rank = np.asarray(tsp_ranks(keys, params, workers=run.workers))
     seeds = jax.tree.leaves(nets)[0].shape[0]
     agent = seed_metrics(network, nets, run.agent, keys, params, bandwidths)
@@ -71,12 +79,17 @@ def compare_search(
         refs = {
             "tsp-dwell": jax.tree.map(np.asarray, dwell_metrics(tsp_dwell, keys, pb, v_c, k_star, margin, rank)),
             "dwell-switch": switch_metrics(keys, pb, sv, sm, rank),
+            "exact planner": receding.fly(keys, pb, workers=run.workers)[0],
         }
+        bound = np.minimum(psnr_bound(keys, pb), travel_bound(keys, pb))
         row = {"B": float(b), "seeds": [], "references": {k: mean_ci(m["mean_psnr"]) for k, m in refs.items()}}
+        row["references"]["bound"] = mean_ci(bound)
         for s in range(seeds):
             net = jax.tree.map(lambda x, s=s: x[s], nets)
             t0 = time.perf_counter()
-            m = map_episodes(lambda k, net=net, pb=pb: search_metrics(net, run.agent, k, pb, every)[0], keys)
+            m = map_episodes(
+                lambda k, net=net, pb=pb: search_metrics(net, run.agent, k, pb, every, 1, targets)[0], keys
+            )
             own = {k: v[s, j] for k, v in agent.items()}
             base = {"agent": own["mean_psnr"], **{k: r["mean_psnr"] for k, r in refs.items()}}
             seed = {
@@ -85,6 +98,7 @@ def compare_search(
                 "arrived": float(np.mean(m["arrived"])),
                 "wall_s": time.perf_counter() - t0,
                 **{f"minus {n}": mean_ci(m["mean_psnr"] - base[n]) for n in VERSUS},
+                "bound gap": mean_ci(bound - m["mean_psnr"]),
             }
             row["seeds"].append(seed)
             log(
@@ -92,34 +106,44 @@ def compare_search(
                 + ", ".join(f"− {n} {seed['minus ' + n][0]:+.2f}" for n in VERSUS)
                 + f" ({seed['wall_s']:.0f} s)"
             )
-        row["search"] = {k: mean_ci([x[k][0] for x in row["seeds"]]) for k in ("mean_psnr", "agent")} | {
-            f"minus {n}": mean_ci([x[f"minus {n}"][0] for x in row["seeds"]]) for n in VERSUS
-        }
+        row["search"] = (
+            {k: mean_ci([x[k][0] for x in row["seeds"]]) for k in ("mean_psnr", "agent")}
+            | {f"minus {n}": mean_ci([x[f"minus {n}"][0] for x in row["seeds"]]) for n in VERSUS}
+            | {"bound gap": mean_ci([x["bound gap"][0] for x in row["seeds"]])}
+        )
         rows.append(row)
-    return {"episodes": episodes, "test_seed": TEST_SEED, "every": every, "seeds": seeds, "rows": rows}
+    return {
+        "episodes": episodes,
+        "layout_seed": seed,
+        "layouts": "validation" if validation else "test",
+        "every": every,
+        "targets": targets if run.agent.uses_options else None,
+        "seeds": seeds,
+        "rows": rows,
+    }
 
 
 def markdown(r: dict) -> str:
     head = " | ".join(f"search − {n}" for n in VERSUS)
+    cells = lambda s: [f"{s[c][0]:+.2f} {pm(s[c][1])}" for c in (*(f"minus {n}" for n in VERSUS), "bound gap")]
+    knobs = f"a decision every {r['every']} slots" + (f", {r['targets']} target devices" if r["targets"] else "")
     lines = [
-        f"First {r['episodes']} test layouts (seed {r['test_seed']}); a decision every {r['every']} slots; "
-        f"{r['seeds']} seeds, each paired per layout; across seeds: mean of the seeds' means ± t interval.",
+        f"First {r['episodes']} {r['layouts']} layouts (seed {r['layout_seed']}); {knobs}; {r['seeds']} seeds, "
+        "each paired per layout; across seeds: mean of the seeds' means ± t interval.",
         "",
-        f"| B (kHz) | seed | agent with search (dB) | agent (dB) | {head} | s |",
-        "|---" * (5 + len(VERSUS)) + "|",
+        f"| B (kHz) | seed | agent with search (dB) | agent (dB) | {head} | bound − search | s |",
+        "|---" * (6 + len(VERSUS)) + "|",
     ]
     for row in r["rows"]:
         for i, s in enumerate(row["seeds"]):
-            cells = [f"{s['minus ' + n][0]:+.2f} {pm(s['minus ' + n][1])}" for n in VERSUS]
             lines.append(
                 f"| {row['B'] / 1e3:g} | {i} | {s['mean_psnr'][0]:.2f} | {s['agent'][0]:.2f} | "
-                + " | ".join(cells)
+                + " | ".join(cells(s))
                 + f" | {s['wall_s']:.0f} |"
             )
         a = row["search"]
-        cells = [f"{a['minus ' + n][0]:+.2f} {pm(a['minus ' + n][1])}" for n in VERSUS]
         lines.append(
             f"| {row['B'] / 1e3:g} | mean | {a['mean_psnr'][0]:.2f} {pm(a['mean_psnr'][1])} | "
-            f"{a['agent'][0]:.2f} | " + " | ".join(cells) + " | |"
+            f"{a['agent'][0]:.2f} | " + " | ".join(cells(a)) + " | |"
         )
     return "\n".join(lines)
