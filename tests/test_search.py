@@ -87,6 +87,10 @@ def test_the_search_command_says_what_to_run_first(tmp_path, capsys):
         main([str(folder), "--episodes", "4"])
     err = capsys.readouterr().err
     assert e.value.code == 2 and "has no dwell tuning" in err and "run semuav-compare on it first" in err, err
+    with pytest.raises(SystemExit) as e:  # --tuning names the file it read
+        main([str(folder), "--episodes", "4", "--tuning", str(tmp_path / "none.json")])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and f"{tmp_path / 'none.json'} has no dwell tuning" in err, err
 
 
 def test_option_search_goes_on_with_the_agent_or_starts_an_option(curves):

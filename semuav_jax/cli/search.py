@@ -1,8 +1,9 @@
-"""The agent with search at the BS against the reactive agent, TSP-dwell and dwell-switch
+"""The agent with search at the BS against the reactive agent and the references
 
-``semuav-search RUN_FOLDER [--episodes 100] [--every 8] [--targets 4] [--validation] [--json out.json]``: the table of
-``semuav_jax.experiments.search`` for a finished train.py run folder whose eval.json holds the
-dwell tuning (docs/ddqn.md, "The agent with search"), printed as Markdown.
+``semuav-search RUN_FOLDER [--episodes 100] [--every 8] [--targets 4] [--validation]
+[--tuning EVAL_JSON] [--json out.json]``: the table of ``semuav_jax.experiments.search`` for a
+finished train.py run folder, the dwell knobs from its eval.json (or ``--tuning``'s; docs/ddqn.md,
+"The agent with search"), printed as Markdown.
 """
 
 from __future__ import annotations
@@ -22,11 +23,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--every", type=int, default=SEARCH_EVERY, help="slots between two decisions")
     ap.add_argument("--targets", type=int, default=SEARCH_TARGETS, help="option agents: candidate devices per decision")
     ap.add_argument("--validation", action="store_true", help="validation layouts (keys.VALIDATION_SEED): for choosing")
+    ap.add_argument("--tuning", help="the eval.json whose dwell knobs to use (default: the folder's own)")
     ap.add_argument("--json", help="write the numbers here (atomically)")
     args = ap.parse_args(argv)
     try:
         r = compare_search(
-            args.folder, args.episodes, every=args.every, targets=args.targets, validation=args.validation
+            args.folder,
+            args.episodes,
+            every=args.every,
+            targets=args.targets,
+            validation=args.validation,
+            tuning=args.tuning,
         )
     except ValueError as e:
         ap.error(str(e))

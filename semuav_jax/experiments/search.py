@@ -44,15 +44,18 @@ def compare_search(
     every: int = SEARCH_EVERY,
     targets: int = SEARCH_TARGETS,
     validation: bool = False,
+    tuning: str | os.PathLike | None = None,
     log: Callable[[str], None] = print,
 ) -> dict:
-    """Every number of the table (JSON-ready); the dwell knobs come from ``folder``'s eval.json.
-    ``targets``: the candidate devices of an option agent's search (``agents/search.py``)."""
+    """Every number of the table (JSON-ready); the dwell knobs come from ``folder``'s eval.json, or
+    from the eval.json ``tuning`` of another run of the same env. ``targets``: the candidate
+    devices of an option agent's search (``agents/search.py``)."""
     if episodes < 2:
         raise ValueError(f"episodes must be >= 2 (an interval needs two), got {episodes}")
     run, nets = load_run(folder)
+    source = Path(folder) / EVAL_FILE if tuning is None else Path(tuning)
     try:
-        saved = json.loads((Path(folder) / EVAL_FILE).read_text())
+        saved = json.loads(source.read_text())
         tuning = saved["tuning"]
         knobs = {
             float(row["B"]): (tuning["tsp-dwell"]["knobs"][j], tuning["dwell-switch"]["switch"][j])
@@ -60,11 +63,11 @@ def compare_search(
         }
     except (OSError, KeyError, ValueError, TypeError) as e:
         raise ValueError(
-            f"{folder}/{EVAL_FILE} has no dwell tuning ({type(e).__name__}: {e}); run semuav-compare on it first"
+            f"{source} has no dwell tuning ({type(e).__name__}: {e}); run semuav-compare on it first"
         ) from None
     missing = [b for b in bandwidths if float(b) not in knobs]
     if missing:
-        raise ValueError(f"{folder}/{EVAL_FILE} has no dwell tuning at B = {missing}")
+        raise ValueError(f"{source} has no dwell tuning at B = {missing}")
     params = run.env_params()
     network = q_network(params, run.agent)
     seed = VALIDATION_SEED if validation else TEST_SEED
