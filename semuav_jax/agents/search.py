@@ -26,7 +26,7 @@ if TYPE_CHECKING:
 
 SEARCH_EVERY = 8  # slots (4 s) between two decisions
 SEARCH_SAMPLES = 1  # delay draws per candidate and decision
-SEARCH_TARGETS = OPTION_TARGETS  # option agents: the nearest candidate devices whose options are simulated
+SEARCH_TARGETS = OPTION_TARGETS  # option agents: the targets j (eq. 6.4) whose options are simulated
 
 
 @cache
@@ -43,7 +43,7 @@ def search_switching(network: QNetwork, config: DDQNConfig, every: int, samples:
 @cache
 def option_switching(network: QNetwork, config: DDQNConfig, every: int, samples: int, targets: int) -> Switching:
     """Candidates: c = 0 the agent going on with its option (or choosing one); c = 1 .. targets L its
-    option c - 1 (the j < ``targets`` nearest candidates, every k) started now; the last, home; the
+    option c - 1 (targets j < ``targets`` of eq. 6.4, every k) started now; the last, home; the
     agent after each."""
     last = targets * len(OPTION_K) + 1
 

@@ -5,8 +5,8 @@ layouts, ``keys.VALIDATION_SEED``, for choosing the search's knobs) as the refer
 rules at the knobs the run's eval.json chose on validation layouts. Margins are per-episode paired
 differences; across seeds, the mean of the seeds' means with its t interval. No seed is selected.
 
-The command line: ``semuav-search RUN_FOLDER [--episodes 100] [--json out.json]``
-(``semuav_jax.cli.search``).
+The command line: ``semuav-search RUN_FOLDER [--episodes 100] [--validation] [--json out.json]``
+and the knobs of ``semuav_jax.cli.search``.
 """
 
 from __future__ import annotations
@@ -21,11 +21,9 @@ import jax
 import numpy as np
 
 from baselines import receding
-from baselines.bound import psnr_bound
 from baselines.dwell import dwell_metrics, tsp_dwell
 from baselines.evaluate import tsp_ranks
-from baselines.report import BANDWIDTHS, switch_metrics
-from baselines.travel_bound import travel_bound
+from baselines.report import BANDWIDTHS, certified_bound, switch_metrics
 from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.network import q_network
 from semuav_jax.agents.runs import EVAL_FILE, load_run
@@ -56,9 +54,9 @@ def compare_search(
     source = Path(folder) / EVAL_FILE if tuning is None else Path(tuning)
     try:
         saved = json.loads(source.read_text())
-        tuning = saved["tuning"]
+        tuned = saved["tuning"]
         knobs = {
-            float(row["B"]): (tuning["tsp-dwell"]["knobs"][j], tuning["dwell-switch"]["switch"][j])
+            float(row["B"]): (tuned["tsp-dwell"]["knobs"][j], tuned["dwell-switch"]["switch"][j])
             for j, row in enumerate(saved["rows"])
         }
     except (OSError, KeyError, ValueError, TypeError) as e:
@@ -84,7 +82,7 @@ def compare_search(
             "dwell-switch": switch_metrics(keys, pb, sv, sm, rank),
             "exact planner": receding.fly(keys, pb, workers=run.workers)[0],
         }
-        bound = np.minimum(psnr_bound(keys, pb), travel_bound(keys, pb))
+        bound = certified_bound(keys, pb)
         row = {"B": float(b), "seeds": [], "references": {k: mean_ci(m["mean_psnr"]) for k, m in refs.items()}}
         row["references"]["bound"] = mean_ci(bound)
         for s in range(seeds):
