@@ -40,6 +40,30 @@ def test_a_dropped_keyboard_interrupt_still_stops_at_the_next_step(capsys):
         signal.signal(signal.SIGINT, before)
 
 
+def test_an_interrupt_that_c_code_turned_into_another_error_is_still_the_interrupt(capsys):
+    """Ctrl-C inside matplotlib's pybind11 code comes back as a TypeError: after Ctrl-C it ends with
+    130 and one line; the same error without Ctrl-C keeps its traceback."""
+
+    def run(argv):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+        except KeyboardInterrupt:
+            raise TypeError("affine_transform(): incompatible function arguments") from None
+        return 0
+
+    def broken(argv):
+        raise TypeError("a real bug")
+
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        assert interruptible(run, [], "rerun it") == 130
+        assert capsys.readouterr().err.strip() == f"{os.path.basename(sys.argv[0])}: interrupted; rerun it"
+        with pytest.raises(TypeError, match="a real bug"):
+            interruptible(broken, [], "rerun it")
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
 @pytest.mark.slow
 def test_sigint_stops_with_one_line_and_resumes(curves_file, tmp_path):
     """Ctrl-C during training: exit 130, a one-line message, no traceback; --resume then finishes."""

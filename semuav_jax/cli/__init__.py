@@ -34,7 +34,11 @@ def interruptible(run: Callable[[list[str] | None], int], argv: list[str] | None
         signal.signal(signal.SIGINT, _on_sigint)
     try:
         return run(argv)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, Exception) as e:
+        # a KeyboardInterrupt raised inside C++ (matplotlib's pybind11, a JAX callback) comes back
+        # as another exception (TypeError, XlaRuntimeError): after Ctrl-C it is still the interrupt
+        if not (isinstance(e, KeyboardInterrupt) or _asked["stop"]):
+            raise
         print(f"\n{Path(sys.argv[0]).name}: interrupted; {resume_hint}", file=sys.stderr)
         return 130
     finally:
