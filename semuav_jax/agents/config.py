@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from semuav_jax.actions import ACTION_MODES
+from semuav_jax.actions import ACTION_MODES, OPTION_K
 
 SLOTS_PER_OPTION = 16  # slots a random option lasts, about: sizes the warm-up of option agents
 
@@ -53,6 +53,15 @@ class DDQNConfig:
         "nearest device), option (eq. 6.4: serve one of the 4 nearest devices until k symbols, or go home; "
         "one decision per option) or table (the paper's 9 accelerations)",
     )
+    demo_steps: int = option(
+        0,
+        "vmapped env steps the expert option (the first along the tour, k by bandwidth: demo_k, demo_edges) flies "
+        "before training; its decisions are a demonstration memory kept for the whole run (DQfD); 0: none",
+    )
+    demo_weight: float = option(1.0, "weight of the demonstrations' TD and large-margin losses in each update")
+    demo_margin: float = option(0.2, "large margin of Q(s, expert's choice) over every other choice (scaled rewards)")
+    demo_k: tuple = option((16.0, 48.0, 32.0), "the expert option's k below, between and above demo_edges")
+    demo_edges: tuple = option((7.5e3, 35e3), "Hz: the bandwidths where the expert option's k changes")
     bandwidth_range: tuple | None = option(
         (4e3, 45e3),
         "(lo, hi) Hz: the envs train at bandwidths evenly spaced in the range "
@@ -60,7 +69,7 @@ class DDQNConfig:
     )
 
     def __post_init__(self) -> None:
-        for name in ("hidden", "bandwidth_range"):  # lists (from JSON or the command line) become tuples
+        for name in ("hidden", "bandwidth_range", "demo_k", "demo_edges"):  # lists (JSON, command line): tuples
             if isinstance(getattr(self, name), list):
                 object.__setattr__(self, name, tuple(getattr(self, name)))
         ints = (
@@ -76,6 +85,17 @@ class DDQNConfig:
         for name in ints:
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)}")
+        if int(self.demo_steps) < 0:
+            raise ValueError(f"demo_steps must be >= 0, got {self.demo_steps}")
+        if self.demo_steps and not self.uses_options:
+            raise ValueError("demonstrations (demo_steps > 0) come from an expert option: they need actions='option'")
+        if not all(k in OPTION_K for k in self.demo_k) or len(self.demo_k) != len(self.demo_edges) + 1:
+            raise ValueError(
+                f"demo_k must hold len(demo_edges) + 1 = {len(self.demo_edges) + 1} of the options' k {OPTION_K}, "
+                f"got {self.demo_k}"
+            )
+        if list(self.demo_edges) != sorted(self.demo_edges) or not all(0 < e < float("inf") for e in self.demo_edges):
+            raise ValueError(f"demo_edges must be increasing finite bandwidths > 0 (Hz), got {self.demo_edges}")
         if self.learning_starts < self.batch_size:
             raise ValueError(f"learning_starts ({self.learning_starts}) must be >= batch_size ({self.batch_size})")
         if self.learning_starts > self.buffer_size:
@@ -102,7 +122,7 @@ class DDQNConfig:
             raise ValueError(f"hidden must be one or more positive layer widths, got {self.hidden}")
         if not 0.0 < self.lr_end <= 1.0:
             raise ValueError(f"lr_end must be in (0, 1], got {self.lr_end}")
-        for name in ("lr", "reward_scale", "max_grad_norm"):
+        for name in ("lr", "reward_scale", "max_grad_norm", "demo_weight", "demo_margin"):
             if not 0 < getattr(self, name) < float("inf"):  # NaN fails too
                 raise ValueError(f"{name} must be finite and > 0, got {getattr(self, name)}")
         if self.shield_margin is not None and self.shield_margin == float("inf"):

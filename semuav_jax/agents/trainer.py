@@ -23,6 +23,7 @@ from flax import struct
 from jax.typing import ArrayLike
 
 from semuav_jax.agents.config import DDQNConfig
+from semuav_jax.agents.demos import expert_policy, margin_loss
 from semuav_jax.agents.network import QNetwork, num_actions, q_network
 from semuav_jax.agents.policy import Explore, explore_policy, input_size, network_input
 from semuav_jax.agents.replay import ReplayBuffer, Transition, n_step_transition, replay_init, ring_buffer
@@ -77,6 +78,7 @@ class TrainState:
     step: jax.Array  # vmapped env steps taken after warm-up
     updates: jax.Array  # gradient updates
     chunk: jax.Array  # chunks done
+    demos: Any = None  # the demonstration memory (``replay.Replay``; agents/demos.py), if demo_steps > 0
 
 
 class Trainer(NamedTuple):
@@ -95,20 +97,33 @@ class Trainer(NamedTuple):
     train: Callable  # key -> (TrainState, per-chunk metrics), the whole run
 
 
-def loss(tr: Trainer, params: Any, target_params: Any, batch: Transition) -> jax.Array:
-    """Huber loss of Q(s, a) against the double-Q n-step target."""
+def td_loss(tr: Trainer, params: Any, target_params: Any, batch: Transition) -> tuple[jax.Array, jax.Array]:
+    """(Huber loss of Q(s, a) against the double-Q n-step target, Q(s, .) of the batch)."""
     q = tr.network.apply(params, batch.obs)
     q_a = jnp.take_along_axis(q, batch.action[:, None], axis=-1)[:, 0]
     q_next_online = tr.network.apply(params, batch.next_obs)
     q_next_target = tr.network.apply(target_params, batch.next_obs)
     y = double_q_target(q_next_online, q_next_target, batch.reward, batch.done, batch.discount)
-    return jnp.mean(optax.huber_loss(q_a, jax.lax.stop_gradient(y)))
+    return jnp.mean(optax.huber_loss(q_a, jax.lax.stop_gradient(y))), q
+
+
+def loss(tr: Trainer, params: Any, target_params: Any, batch: Transition, demos: Transition | None) -> jax.Array:
+    """The TD loss of ``batch``; with a minibatch of ``demos``, plus demo_weight times its TD and
+    large-margin losses (agents/demos.py)."""
+    value = td_loss(tr, params, target_params, batch)[0]
+    if demos is None:
+        return value
+    td, q = td_loss(tr, params, target_params, demos)
+    return value + tr.config.demo_weight * (td + margin_loss(q, demos.action, tr.config.demo_margin))
 
 
 def update(tr: Trainer, ts: TrainState, key: jax.Array) -> tuple[TrainState, jax.Array]:
-    """One gradient step on a replay minibatch; returns (ts, loss)."""
+    """One gradient step on a replay minibatch (and one of the demonstrations); returns (ts, loss)."""
     batch = tr.buffer.sample(ts.replay, key).experience
-    value, grads = jax.value_and_grad(partial(loss, tr))(ts.params, ts.target_params, batch)
+    demos = None
+    if ts.demos is not None:  # the demonstration memory is a ring buffer whatever the replay memory is
+        demos = ring_buffer(1, tr.config.batch_size).sample(ts.demos, jax.random.fold_in(key, 1)).experience
+    value, grads = jax.value_and_grad(partial(loss, tr))(ts.params, ts.target_params, batch, demos)
     upd, opt_state = tr.tx.update(grads, ts.opt_state, ts.params)
     return ts.replace(params=optax.apply_updates(ts.params, upd), opt_state=opt_state, updates=ts.updates + 1), value
 
@@ -168,6 +183,7 @@ def init(tr: Trainer, key: jax.Array) -> TrainState:
     """A fresh agent and envs; the n-step window and then the memory filled with random actions."""
     c, E = tr.config, tr.config.num_envs
     k_net, k_env, k_warm, k_run = jax.random.split(key, 4)
+    k_warm, k_demo = jax.random.split(k_warm) if c.demo_steps else (k_warm, None)
     n_in = input_size(tr.env_params.replace(B=tr.env_params.B[0]), c)
     params = tr.network.init(k_net, jnp.zeros((n_in,), jnp.float32))
     states = jax.vmap(reset_state, (0, tr.env_axes))(jax.random.split(k_env, E), tr.env_params)
@@ -195,7 +211,20 @@ def init(tr: Trainer, key: jax.Array) -> TrainState:
     if not tr.config.uses_options:
         ts, _ = jax.lax.scan(fill, ts, jax.random.split(k_fill, c.n_step - 1))  # fill the window
     ts, _ = jax.lax.scan(warm, ts, jax.random.split(k_warm, c.warmup_steps))
-    return ts
+    return demonstrate(tr, ts, k_demo) if c.demo_steps else ts
+
+
+def demonstrate(tr: Trainer, ts: TrainState, key: jax.Array) -> TrainState:
+    """``ts`` with the demonstration memory: the decisions of the expert option (agents/demos.py)
+    flying ``demo_steps`` vmapped env steps from ``ts``'s envs (its first decisions end nothing),
+    which then go on as they were."""
+    c = tr.config
+    expert = tr._replace(policy=expert_policy(c), buffer=ring_buffer(c.buffer_size, c.batch_size))
+    fly = lambda ts, k: (env_step(expert, ts, k, 0.0)[0], None)
+    memory = replay_init(c.buffer_size, ts.obs.x.shape[-1])
+    empty = ts.replace(replay=memory, window=pending_init(jax.tree.map(lambda x: x[: c.num_envs], memory.data)))
+    flown, _ = jax.lax.scan(fly, empty, jax.random.split(key, c.demo_steps))
+    return ts.replace(demos=flown.replay)
 
 
 def train_step(tr: Trainer, ts: TrainState, _=None) -> tuple[TrainState, dict[str, jax.Array]]:

@@ -1,0 +1,75 @@
+"""Demonstrations (agents/demos.py, DQfD): the expert's choice by bandwidth, the large-margin loss
+by hand, the demonstration memory holding the expert's decisions, and bad settings refused."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from semuav_jax.actions import OPTION_K
+from semuav_jax.agents.config import DDQNConfig
+from semuav_jax.agents.demos import expert_choice, margin_loss
+from semuav_jax.agents.trainer import make_train
+
+CFG = DDQNConfig(actions="option", demo_steps=40, num_envs=4, steps_per_chunk=5, total_steps=80,
+                 learning_starts=32, batch_size=8, buffer_size=256)  # fmt: skip
+
+
+def test_the_expert_takes_the_k_of_its_bandwidth():
+    """k = 16 below 7.5 kHz, 48 up to 35 kHz, 32 above (an edge belongs to the band above it)."""
+    got = [int(expert_choice(jnp.float32(b), CFG)) for b in (4e3, 7.5e3, 20e3, 35e3, 45e3)]
+    assert got == [OPTION_K.index(k) for k in (16.0, 48.0, 48.0, 32.0, 32.0)]
+
+
+def test_margin_loss_by_hand():
+    """J_E = max_a [Q(s, a) + l(a_E, a)] - Q(s, a_E): 0 when the expert's Q leads by the margin."""
+    q = jnp.array([[1.0, 0.5, 0.9], [0.0, 2.0, 1.0]])
+    # row 0, expert 0: max(1, 0.5 + 0.2, 0.9 + 0.2) - 1 = 0.1; row 1, expert 1: max(0.2, 2, 1.2) - 2 = 0
+    np.testing.assert_allclose(margin_loss(q, jnp.array([0, 1]), 0.2), 0.05, rtol=1e-6)
+    np.testing.assert_allclose(margin_loss(q, jnp.array([2, 1]), 0.0), (1.0 - 0.9) / 2, rtol=1e-6)
+
+
+def test_the_demonstration_memory_holds_the_experts_decisions(params):
+    """After init, the memory holds the expert's decisions (its choice at each env's bandwidth),
+    with finite rewards and discounts gamma^tau in (0, 1]; without demo_steps there is none."""
+    tr = make_train(CFG, params)
+    ts = jax.jit(tr.init)(jax.random.key(0))
+    size = int(ts.demos.size)
+    assert size > 0
+    data = jax.tree.map(lambda x: np.asarray(x[:size]), ts.demos.data)
+    allowed = {OPTION_K.index(k) for k in CFG.demo_k}
+    assert set(data.action.tolist()) <= allowed
+    assert np.all(np.isfinite(data.reward)) and np.all((data.discount > 0) & (data.discount <= 1))
+    plain = jax.jit(make_train(DDQNConfig(**{**CFG.to_dict(), "demo_steps": 0}), params).init)(jax.random.key(0))
+    assert plain.demos is None
+
+
+def test_training_with_demonstrations_runs_and_is_deterministic(params):
+    """Two chunks of training with the demonstration losses: finite, the same under the same key,
+    and not the weights of the same run without demonstrations."""
+    tr = make_train(CFG, params)
+    run = jax.jit(lambda k: tr.run(tr.init(k), 2))
+    (a, ma), (b, _) = run(jax.random.key(1)), run(jax.random.key(1))
+    assert np.all(np.isfinite(np.asarray(ma["loss"])))
+    for x, y in zip(jax.tree.leaves(a.params), jax.tree.leaves(b.params)):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+    bare = make_train(DDQNConfig(**{**CFG.to_dict(), "demo_steps": 0}), params)
+    c, _ = jax.jit(lambda k: bare.run(bare.init(k), 2))(jax.random.key(1))
+    assert any(not np.array_equal(x, y) for x, y in zip(jax.tree.leaves(a.params), jax.tree.leaves(c.params)))
+
+
+@pytest.mark.parametrize(
+    "bad, match",
+    [
+        ({"actions": "waypoint", "demo_steps": 10}, "need actions='option'"),
+        ({"demo_steps": -1}, "demo_steps must be >= 0"),
+        ({"demo_k": (16.0, 40.0, 32.0)}, "demo_k must hold"),
+        ({"demo_k": (16.0, 48.0)}, "demo_k must hold"),
+        ({"demo_edges": (35e3, 7.5e3)}, "demo_edges must be increasing"),
+        ({"demo_margin": float("nan")}, "demo_margin must be finite"),
+        ({"demo_weight": 0.0}, "demo_weight must be finite and > 0"),
+    ],
+)
+def test_bad_demonstration_settings_are_one_line_errors(bad, match):
+    with pytest.raises(ValueError, match=match):
+        DDQNConfig(**{"actions": "option", **bad})
