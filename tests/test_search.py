@@ -6,6 +6,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.evaluate import evaluate_agent
@@ -120,3 +121,20 @@ def test_option_search_goes_on_with_the_agent_or_starts_an_option(curves):
     m, chosen, _ = search_metrics(net, cfg, keys, params, every=8)
     assert np.asarray(chosen).shape == (4, 8) and np.asarray(chosen).max() <= 25
     assert np.all(np.isfinite(np.asarray(m["mean_psnr"])))
+
+
+@pytest.mark.slow
+def test_the_search_table_names_the_layouts_it_used():
+    """semuav-search's table and JSON state the layout stream of its keys (validation here) and
+    one paired row per seed: the shipped agent on 2 validation layouts at 25 kHz."""
+    from semuav_jax.experiments.search import compare_search, markdown
+    from semuav_jax.keys import VALIDATION_SEED
+
+    r = compare_search(ROOT / "semuav_jax" / "data" / "agent", episodes=2, bandwidths=(25e3,), validation=True,
+                       log=lambda _: None)  # fmt: skip
+    assert r["layout_seed"] == VALIDATION_SEED and r["layouts"] == "validation"
+    assert f"First 2 validation layouts (seed {VALIDATION_SEED})" in markdown(r)
+    (row,) = r["rows"]
+    assert len(row["seeds"]) == r["seeds"] == 3
+    for s in row["seeds"]:
+        np.testing.assert_allclose(s["minus agent"][0], s["mean_psnr"][0] - s["agent"][0], atol=1e-4)

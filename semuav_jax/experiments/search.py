@@ -93,7 +93,7 @@ def compare_search(
             )
             own = {k: v[s, j] for k, v in agent.items()}
             base = {"agent": own["mean_psnr"], **{k: r["mean_psnr"] for k, r in refs.items()}}
-            seed = {
+            res = {
                 "mean_psnr": mean_ci(m["mean_psnr"]),
                 "agent": mean_ci(own["mean_psnr"]),
                 "arrived": float(np.mean(m["arrived"])),
@@ -101,11 +101,11 @@ def compare_search(
                 **{f"minus {n}": mean_ci(m["mean_psnr"] - base[n]) for n in VERSUS},
                 "bound gap": mean_ci(bound - m["mean_psnr"]),
             }
-            row["seeds"].append(seed)
+            row["seeds"].append(res)
             log(
-                f"B = {b / 1e3:g} kHz, seed {s}: search {seed['mean_psnr'][0]:.2f} dB, agent {seed['agent'][0]:.2f}, "
-                + ", ".join(f"− {n} {seed['minus ' + n][0]:+.2f}" for n in VERSUS)
-                + f" ({seed['wall_s']:.0f} s)"
+                f"B = {b / 1e3:g} kHz, seed {s}: search {res['mean_psnr'][0]:.2f} dB, agent {res['agent'][0]:.2f}, "
+                + ", ".join(f"− {n} {res['minus ' + n][0]:+.2f}" for n in VERSUS)
+                + f" ({res['wall_s']:.0f} s)"
             )
         row["search"] = (
             {k: mean_ci([x[k][0] for x in row["seeds"]]) for k in ("mean_psnr", "agent")}
