@@ -91,6 +91,7 @@ class Trainer(NamedTuple):
     env_axes: Any  # vmap axes of env_params
     tx: optax.GradientTransformation
     buffer: ReplayBuffer
+    demo_buffer: ReplayBuffer  # the demonstration memory's functions: a ring buffer whatever ``buffer`` is
     progress: Callable | None
     init: Callable  # key -> TrainState (warm-up included)
     run: Callable  # (TrainState, n_chunks static) -> (TrainState, per-chunk metrics)
@@ -120,9 +121,7 @@ def loss(tr: Trainer, params: Any, target_params: Any, batch: Transition, demos:
 def update(tr: Trainer, ts: TrainState, key: jax.Array) -> tuple[TrainState, jax.Array]:
     """One gradient step on a replay minibatch (and one of the demonstrations); returns (ts, loss)."""
     batch = tr.buffer.sample(ts.replay, key).experience
-    demos = None
-    if ts.demos is not None:  # the demonstration memory is a ring buffer whatever the replay memory is
-        demos = ring_buffer(1, tr.config.batch_size).sample(ts.demos, jax.random.fold_in(key, 1)).experience
+    demos = None if ts.demos is None else tr.demo_buffer.sample(ts.demos, jax.random.fold_in(key, 1)).experience
     value, grads = jax.value_and_grad(partial(loss, tr))(ts.params, ts.target_params, batch, demos)
     upd, opt_state = tr.tx.update(grads, ts.opt_state, ts.params)
     return ts.replace(params=optax.apply_updates(ts.params, upd), opt_state=opt_state, updates=ts.updates + 1), value
@@ -219,10 +218,10 @@ def demonstrate(tr: Trainer, ts: TrainState, key: jax.Array) -> TrainState:
     flying ``demo_steps`` vmapped env steps from ``ts``'s envs (its first decisions end nothing),
     which then go on as they were."""
     c = tr.config
-    expert = tr._replace(policy=expert_policy(c), buffer=ring_buffer(c.buffer_size, c.batch_size))
+    expert = tr._replace(policy=expert_policy(c), buffer=tr.demo_buffer)
     fly = lambda ts, k: (env_step(expert, ts, k, 0.0)[0], None)
-    memory = replay_init(c.buffer_size, ts.obs.x.shape[-1])
-    empty = ts.replace(replay=memory, window=pending_init(jax.tree.map(lambda x: x[: c.num_envs], memory.data)))
+    n_in = ts.obs.x.shape[-1]
+    empty = ts.replace(replay=replay_init(c.buffer_size, n_in), window=pending_init(replay_init(c.num_envs, n_in).data))
     flown, _ = jax.lax.scan(fly, empty, jax.random.split(key, c.demo_steps))
     return ts.replace(demos=flown.replay)
 
@@ -288,6 +287,7 @@ def make_train(
         env_axes=jax.tree.map(lambda _: None, env_params).replace(B=0),
         tx=optax.chain(optax.clip_by_global_norm(config.max_grad_norm), optax.adam(lr)),
         buffer=ring_buffer(config.buffer_size, config.batch_size) if buffer is None else buffer,
+        demo_buffer=ring_buffer(config.buffer_size, config.batch_size),
         progress=progress,
         init=None,
         run=None,
