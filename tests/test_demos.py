@@ -9,10 +9,10 @@ import pytest
 from semuav_jax.actions import OPTION_K
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.demos import expert_choice, margin_loss
-from semuav_jax.agents.trainer import make_train
+from semuav_jax.agents.trainer import make_train, update
 
 CFG = DDQNConfig(actions="option", demo_steps=40, num_envs=4, steps_per_chunk=5, total_steps=80,
-                 learning_starts=32, batch_size=8, buffer_size=256)  # fmt: skip
+                 learning_starts=32, batch_size=8, demo_batch=4, buffer_size=256)  # fmt: skip
 
 
 def test_the_expert_takes_the_k_of_its_bandwidth():
@@ -58,6 +58,20 @@ def test_training_with_demonstrations_runs_and_is_deterministic(params):
     assert any(not np.array_equal(x, y) for x, y in zip(jax.tree.leaves(a.params), jax.tree.leaves(c.params)))
 
 
+def test_updates_on_mixed_minibatches_learn_the_experts_choices(params):
+    """Updates alone (no env steps), the last demo_batch rows of each minibatch demonstrations with
+    a heavy large-margin loss: the greedy choice on the demonstrated states becomes the expert's."""
+    cfg = DDQNConfig(**{**CFG.to_dict(), "lr": 3e-3, "demo_weight": 20.0, "lr_end": 1.0})
+    tr = make_train(cfg, params)
+    ts = jax.jit(tr.init)(jax.random.key(2))
+    size = int(ts.demos.size)
+    obs, action = ts.demos.data.obs[:size], np.asarray(ts.demos.data.action[:size])
+    agree = lambda ts: np.mean(np.asarray(jnp.argmax(tr.network.apply(ts.params, obs), -1)) == action)
+    steps = jax.jit(lambda ts, k: jax.lax.scan(lambda t, k: update(tr, t, k), ts, jax.random.split(k, 400))[0])
+    before, ts = agree(ts), steps(ts, jax.random.key(3))
+    assert agree(ts) >= 0.95 > before
+
+
 @pytest.mark.parametrize(
     "bad, match",
     [
@@ -68,6 +82,8 @@ def test_training_with_demonstrations_runs_and_is_deterministic(params):
         ({"demo_edges": (35e3, 7.5e3)}, "demo_edges must be increasing"),
         ({"demo_margin": float("nan")}, "demo_margin must be finite"),
         ({"demo_weight": 0.0}, "demo_weight must be finite and > 0"),
+        ({"demo_steps": 10, "demo_batch": 0}, "demo_batch must be in"),
+        ({"demo_steps": 10, "demo_batch": 256}, "demo_batch must be in"),
     ],
 )
 def test_bad_demonstration_settings_are_one_line_errors(bad, match):

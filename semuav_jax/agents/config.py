@@ -58,7 +58,8 @@ class DDQNConfig:
         "vmapped env steps the expert option (the first along the tour, k by bandwidth: demo_k, demo_edges) flies "
         "before training; its decisions are a demonstration memory kept for the whole run (DQfD); 0: none",
     )
-    demo_weight: float = option(1.0, "weight of the demonstrations' TD and large-margin losses in each update")
+    demo_batch: int = option(64, "rows of each batch_size minibatch drawn from the demonstrations, the rest from the replay memory")
+    demo_weight: float = option(1.0, "weight of the large-margin loss on the demonstration rows of each minibatch")
     demo_margin: float = option(0.2, "large margin of Q(s, expert's choice) over every other choice (scaled rewards)")
     demo_k: tuple = option((16.0, 48.0, 32.0), "the expert option's k below, between and above demo_edges")
     demo_edges: tuple = option((7.5e3, 35e3), "Hz: the bandwidths where the expert option's k changes")
@@ -89,6 +90,8 @@ class DDQNConfig:
             raise ValueError(f"demo_steps must be >= 0, got {self.demo_steps}")
         if self.demo_steps and not self.uses_options:
             raise ValueError("demonstrations (demo_steps > 0) come from an expert option: they need actions='option'")
+        if self.demo_steps and not 1 <= int(self.demo_batch) < self.batch_size:
+            raise ValueError(f"demo_batch must be in [1, batch_size = {self.batch_size}), got {self.demo_batch}")
         if not all(k in OPTION_K for k in self.demo_k) or len(self.demo_k) != len(self.demo_edges) + 1:
             raise ValueError(
                 f"demo_k must hold len(demo_edges) + 1 = {len(self.demo_edges) + 1} of the options' k {OPTION_K}, "

@@ -108,21 +108,23 @@ def td_loss(tr: Trainer, params: Any, target_params: Any, batch: Transition) -> 
     return jnp.mean(optax.huber_loss(q_a, jax.lax.stop_gradient(y))), q
 
 
-def loss(tr: Trainer, params: Any, target_params: Any, batch: Transition, demos: Transition | None) -> jax.Array:
-    """The TD loss of ``batch``; with a minibatch of ``demos``, plus demo_weight times its TD and
-    large-margin losses (agents/demos.py)."""
-    value = td_loss(tr, params, target_params, batch)[0]
-    if demos is None:
+def loss(tr: Trainer, params: Any, target_params: Any, batch: Transition, demo_action: jax.Array | None) -> jax.Array:
+    """The TD loss of ``batch``; with ``demo_action``, the expert's choices of the batch's last rows
+    (demonstrations), plus demo_weight times their large-margin loss (agents/demos.py)."""
+    value, q = td_loss(tr, params, target_params, batch)
+    if demo_action is None:
         return value
-    td, q = td_loss(tr, params, target_params, demos)
-    return value + tr.config.demo_weight * (td + margin_loss(q, demos.action, tr.config.demo_margin))
+    return value + tr.config.demo_weight * margin_loss(q[-len(demo_action) :], demo_action, tr.config.demo_margin)
 
 
 def update(tr: Trainer, ts: TrainState, key: jax.Array) -> tuple[TrainState, jax.Array]:
-    """One gradient step on a replay minibatch (and one of the demonstrations); returns (ts, loss)."""
-    batch = tr.buffer.sample(ts.replay, key).experience
-    demos = None if ts.demos is None else tr.demo_buffer.sample(ts.demos, jax.random.fold_in(key, 1)).experience
-    value, grads = jax.value_and_grad(partial(loss, tr))(ts.params, ts.target_params, batch, demos)
+    """One gradient step on a replay minibatch (its last demo_batch rows from the demonstrations,
+    when there are any); returns (ts, loss)."""
+    batch, demo_action = tr.buffer.sample(ts.replay, key).experience, None
+    if ts.demos is not None:
+        demos, n = tr.demo_buffer.sample(ts.demos, jax.random.fold_in(key, 1)).experience, tr.config.demo_batch
+        batch, demo_action = jax.tree.map(lambda r, d: jnp.concatenate([r[:-n], d]), batch, demos), demos.action
+    value, grads = jax.value_and_grad(partial(loss, tr))(ts.params, ts.target_params, batch, demo_action)
     upd, opt_state = tr.tx.update(grads, ts.opt_state, ts.params)
     return ts.replace(params=optax.apply_updates(ts.params, upd), opt_state=opt_state, updates=ts.updates + 1), value
 
@@ -287,7 +289,7 @@ def make_train(
         env_axes=jax.tree.map(lambda _: None, env_params).replace(B=0),
         tx=optax.chain(optax.clip_by_global_norm(config.max_grad_norm), optax.adam(lr)),
         buffer=ring_buffer(config.buffer_size, config.batch_size) if buffer is None else buffer,
-        demo_buffer=ring_buffer(config.buffer_size, config.batch_size),
+        demo_buffer=ring_buffer(config.buffer_size, config.demo_batch),
         progress=progress,
         init=None,
         run=None,
