@@ -58,7 +58,7 @@ class DDQNConfig:
         "vmapped env steps the expert option (the first along the tour, k by bandwidth: demo_k, demo_edges) flies "
         "before training; its decisions are a demonstration memory kept for the whole run (DQfD); 0: none",
     )
-    demo_batch: int = option(64, "rows of each batch_size minibatch drawn from the demonstrations, the rest from the replay memory")
+    demo_batch: int = option(64, "rows of each minibatch drawn from the demonstrations (the rest: replay memory)")
     demo_weight: float = option(1.0, "weight of the large-margin loss on the demonstration rows of each minibatch")
     demo_margin: float = option(0.2, "large margin of Q(s, expert's choice) over every other choice (scaled rewards)")
     demo_k: tuple = option((16.0, 48.0, 32.0), "the expert option's k below, between and above demo_edges")
