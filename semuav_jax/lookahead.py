@@ -42,6 +42,7 @@ class Switching(NamedTuple):
     count: int  # C candidates
     every: int  # slots between two decisions
     samples: int = 1  # delay draws each candidate is simulated with (the same for every candidate)
+    shortlist: Callable | None = None  # (shared, per_episode, state, now, params) -> candidates to simulate; None: all
 
 
 def decision_key(key: jax.Array, i: ArrayLike) -> jax.Array:
@@ -71,8 +72,9 @@ def choose(
     params: EnvParams,
     now: Any = None,
 ) -> tuple[jax.Array, jax.Array]:
-    """Eq. 7.15: (index of the best candidate, (C,) mean scores) from ``state`` (``now``: the policy
-    state there), each candidate simulated to the end with the same ``samples`` delay draws."""
+    """Eq. 7.15: (index of the best candidate, mean scores of the candidates simulated: all C, or
+    those of ``sw.shortlist``) from ``state`` (``now``: the policy state there), each candidate
+    simulated to the end with the same ``samples`` delay draws."""
     keys = jax.random.split(key, sw.samples)
 
     def value(c: jax.Array) -> jax.Array:
@@ -80,8 +82,9 @@ def choose(
         runs = jax.vmap(lambda k: episode(sw.policy, k, params, ps, init_state=state)[0])(keys)
         return jnp.mean(score(runs, params))
 
-    values = jax.vmap(value)(jnp.arange(sw.count))
-    return jnp.argmax(values), values
+    ids = jnp.arange(sw.count) if sw.shortlist is None else sw.shortlist(shared, per_episode, state, now, params)
+    values = jax.vmap(value)(ids)
+    return ids[jnp.argmax(values)], values
 
 
 def switching_episode(

@@ -138,3 +138,28 @@ def test_the_search_table_names_the_layouts_it_used():
     assert len(row["seeds"]) == r["seeds"] == 3
     for s in row["seeds"]:
         np.testing.assert_allclose(s["minus agent"][0], s["mean_psnr"][0] - s["agent"][0], atol=1e-4)
+
+
+def test_option_search_with_top_simulates_the_agents_best_options(curves):
+    """``top``: a decision simulates going on (c = 0) and the options with the highest Q, candidate
+    c = option c - 1, home the last; with every option in the shortlist the search is the full one."""
+    from semuav_jax.actions import OPTION_HOME
+    from semuav_jax.agents.policy import agent_input
+    from semuav_jax.agents.search import option_switching
+    from semuav_jax.env import reset_state
+
+    cfg = DDQNConfig(hidden=(16,), actions="option", shield_margin=2.0)
+    params = make_params(curves, B=25e3, K=60)
+    network = q_network(params, cfg)
+    net = network.init(jax.random.key(1), jnp.zeros((input_size(params, cfg),)))
+    state = reset_state(jax.random.key(7), params)
+    q = np.asarray(network.apply(net, agent_input(state, params, cfg)))
+    sw = option_switching(network, cfg, 8, 1, 2, 3)  # continue, 2 x 6 options, home: 14 candidates
+    q2 = np.concatenate([q[:12], q[OPTION_HOME:]])  # candidate c >= 1 has Q index c - 1
+    ids = np.asarray(sw.shortlist(net, None, state, None, params))
+    assert ids[0] == 0 and sorted(ids[1:] - 1) == sorted(np.argsort(-q2)[:3])
+    keys = jax.random.split(jax.random.PRNGKey(4), 3)
+    full, every_one = (search_metrics(net, cfg, keys, params, 8, 1, 2, top)[0] for top in (None, 13))
+    np.testing.assert_allclose(np.asarray(every_one["mean_psnr"]), np.asarray(full["mean_psnr"]), rtol=1e-6)
+    with pytest.raises(ValueError, match=r"top must be in \[1, 13\]"):
+        option_switching(network, cfg, 8, 1, 2, 14)

@@ -1,6 +1,6 @@
 """The agent with search at the BS against the reactive agent and the references
 
-``semuav-search RUN_FOLDER [--episodes 100] [--every 8] [--targets 4] [--validation]
+``semuav-search RUN_FOLDER [--episodes 100] [--every 8] [--targets 4] [--top M] [--validation]
 [--tuning EVAL_JSON] [--json out.json]``: the table of ``semuav_jax.experiments.search`` for a
 finished train.py run folder, the dwell knobs from its eval.json (or ``--tuning``'s; docs/ddqn.md,
 "The agent with search"), printed as Markdown.
@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from semuav_jax.agents.search import SEARCH_EVERY, SEARCH_TARGETS
+from semuav_jax.agents.search import SEARCH_EVERY, SEARCH_TARGETS, SEARCH_TOP
 from semuav_jax.experiments.search import compare_search, markdown
 from semuav_jax.io import atomic_write
 
@@ -22,6 +22,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--episodes", type=int, default=100, help="test layouts (the first of keys.TEST_SEED)")
     ap.add_argument("--every", type=int, default=SEARCH_EVERY, help="slots between two decisions")
     ap.add_argument("--targets", type=int, default=SEARCH_TARGETS, help="option agents: candidate devices per decision")
+    ap.add_argument(
+        "--top", type=int, default=SEARCH_TOP, help="option agents: simulate only the agent's M best options by Q"
+    )
     ap.add_argument("--validation", action="store_true", help="validation layouts (keys.VALIDATION_SEED): for choosing")
     ap.add_argument("--tuning", help="the eval.json whose dwell knobs to use (default: the folder's own)")
     ap.add_argument("--json", help="write the numbers here (atomically)")
@@ -32,6 +35,7 @@ def main(argv: list[str] | None = None) -> int:
             args.episodes,
             every=args.every,
             targets=args.targets,
+            top=args.top,
             validation=args.validation,
             tuning=args.tuning,
         )

@@ -27,7 +27,7 @@ from baselines.report import BANDWIDTHS, certified_bound, switch_metrics
 from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.network import q_network
 from semuav_jax.agents.runs import EVAL_FILE, load_run
-from semuav_jax.agents.search import SEARCH_EVERY, SEARCH_TARGETS, search_metrics
+from semuav_jax.agents.search import SEARCH_EVERY, SEARCH_TARGETS, SEARCH_TOP, search_metrics
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.sharding import map_episodes
 from semuav_jax.stats import mean_ci, pm
@@ -41,13 +41,14 @@ def compare_search(
     bandwidths: Sequence[float] = BANDWIDTHS,
     every: int = SEARCH_EVERY,
     targets: int = SEARCH_TARGETS,
+    top: int | None = SEARCH_TOP,
     validation: bool = False,
     tuning: str | os.PathLike | None = None,
     log: Callable[[str], None] = print,
 ) -> dict:
     """Every number of the table (JSON-ready); the dwell knobs come from ``folder``'s eval.json, or
-    from the eval.json ``tuning`` of another run of the same env. ``targets``: the candidate
-    devices of an option agent's search (``agents/search.py``)."""
+    from the eval.json ``tuning`` of another run of the same env. ``targets``, ``top``: the candidate
+    devices of an option agent's search and how many of their options it simulates (``agents/search.py``)."""
     if episodes < 2:
         raise ValueError(f"episodes must be >= 2 (an interval needs two), got {episodes}")
     run, nets = load_run(folder)
@@ -89,7 +90,7 @@ def compare_search(
             net = jax.tree.map(lambda x, s=s: x[s], nets)
             t0 = time.perf_counter()
             m = map_episodes(
-                lambda k, net=net, pb=pb: search_metrics(net, run.agent, k, pb, every, 1, targets)[0], keys
+                lambda k, net=net, pb=pb: search_metrics(net, run.agent, k, pb, every, 1, targets, top)[0], keys
             )
             own = {k: v[s, j] for k, v in agent.items()}
             base = {"agent": own["mean_psnr"], **{k: r["mean_psnr"] for k, r in refs.items()}}
@@ -119,6 +120,7 @@ def compare_search(
         "layouts": "validation" if validation else "test",
         "every": every,
         "targets": targets if run.agent.uses_options else None,
+        "top": top if run.agent.uses_options else None,
         "seeds": seeds,
         "rows": rows,
     }
@@ -128,6 +130,7 @@ def markdown(r: dict) -> str:
     head = " | ".join(f"search − {n}" for n in VERSUS)
     cells = lambda s: [f"{s[c][0]:+.2f} {pm(s[c][1])}" for c in (*(f"minus {n}" for n in VERSUS), "bound gap")]
     knobs = f"a decision every {r['every']} slots" + (f", {r['targets']} target devices" if r["targets"] else "")
+    knobs += f", the agent's {r['top']} best options by Q" if r.get("top") else ""
     lines = [
         f"First {r['episodes']} {r['layouts']} layouts (seed {r['layout_seed']}); {knobs}; {r['seeds']} seeds, "
         "each paired per layout; across seeds: mean of the seeds' means ± t interval.",
