@@ -1,9 +1,10 @@
 """Milliseconds per decision at the BS (docs/model.md eq. 7.15): one ``lookahead.choose`` (every
 candidate simulated to the end of the mission) for one UAV, as the BS computes it within the
 processing delay (Delta_proc <= 0.1 s), for dwell-switch (12 candidates) and the agent with search
-(the agent and its 16 actions). States: the first slot of ``--states`` test layouts at B = 25 kHz.
+(the shipped agent and its 16 actions, or the agent of ``--run``, with the search knobs of
+``semuav-search``). States: the first slot of ``--states`` test layouts at B = 25 kHz.
 
-    taskset -c 0 python benchmarks/decision.py [--states 50]
+    taskset -c 0 python benchmarks/decision.py [--states 50] [--run FOLDER --every 16 --top 3]
 
 Prints median and 99th percentile (ms) and writes ``benchmarks/decision.json``. Target: <= 100 ms
 per decision on one core. Also the wall time of evaluating 100 layouts in one vmapped program.
@@ -20,9 +21,8 @@ import numpy as np
 
 from baselines.dwell_switch import dwell_switch_metrics, knob_table, switching
 from baselines.evaluate import tsp_ranks
-from semuav_jax.agents.network import num_actions, q_network
 from semuav_jax.agents.runs import load_run
-from semuav_jax.agents.search import SEARCH_EVERY, search_metrics, search_switching
+from semuav_jax.agents.search import SEARCH_EVERY, SEARCH_TARGETS, agent_switching, search_metrics
 from semuav_jax.env import reset_state
 from semuav_jax.io import atomic_write
 from semuav_jax.keys import TEST_SEED, episode_keys
@@ -31,19 +31,23 @@ from semuav_jax.lookahead import check_switching, choose
 ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
 ap.add_argument("--states", type=int, default=50)
 ap.add_argument("--layouts", type=int, default=100, help="layouts of the batched evaluation")
+ap.add_argument("--run", default=str(Path(__file__).resolve().parents[1] / "semuav_jax" / "data" / "agent"))
+ap.add_argument("--every", type=int, default=SEARCH_EVERY, help="slots between two decisions of the agent")
+ap.add_argument("--targets", type=int, default=SEARCH_TARGETS, help="option agents: candidate devices")
+ap.add_argument("--top", type=int, default=None, help="option agents: simulate the M best options by Q")
 ap.add_argument("--out", default=str(Path(__file__).with_suffix(".json")))
 args = ap.parse_args()
 
-run, nets = load_run(Path(__file__).resolve().parents[1] / "semuav_jax" / "data" / "agent")
+run, nets = load_run(args.run)
 params = run.env_params().replace(B=25e3)
 net = jax.tree.map(lambda x: jnp.asarray(x[0]), nets)
-keys = episode_keys(TEST_SEED, max(args.states, args.layouts))
+keys = episode_keys(TEST_SEED, max(args.states + 1, args.layouts))  # state 0 only compiles
 rank = np.asarray(tsp_ranks(keys, params, workers=1))
-network = q_network(params, run.agent)
+knobs = (args.every, 1, args.targets, args.top)
 cases = {
     "dwell-switch": (check_switching(switching()), knob_table(25.0, 0.0), lambda i: jnp.asarray(rank[i])),
     "agent with search": (
-        check_switching(search_switching(network, run.agent, SEARCH_EVERY, 1, num_actions(params, run.agent))),
+        check_switching(agent_switching(run.agent, params, *knobs)),
         net,
         lambda i: jnp.zeros(()),
     ),
@@ -61,14 +65,14 @@ for name, (sw, shared, per) in cases.items():
     rows.append(
         {
             "policy": name,
-            "candidates": sw.count,
+            "candidates": sw.count if sw.shortlist is None else args.top + 1,  # simulated per decision
             "median_ms": float(np.median(ms)),
             "p99_ms": float(np.percentile(ms, 99)),
         }
     )
 for name, fn in (
     ("dwell-switch", lambda k: dwell_switch_metrics(k, params, 25.0, 0.0, rank[: len(k)])[0]),
-    ("agent with search", lambda k: search_metrics(net, run.agent, k, params)[0]),
+    ("agent with search", lambda k: search_metrics(net, run.agent, k, params, *knobs)[0]),
 ):
     k = keys[: args.layouts]
     t0 = time.perf_counter()  # the first call includes compilation, the second does not
@@ -83,4 +87,5 @@ print(f"| policy | candidates | ms per decision, median | 99th percentile | {arg
 print("|---|---|---|---|---|")
 for r in rows:
     print(f"| {r['policy']} | {r['candidates']} | {r['median_ms']:.1f} | {r['p99_ms']:.1f} | {r['episodes_s']:.1f} |")
-atomic_write(args.out, json.dumps({"devices": jax.device_count(), "rows": rows}, indent=1).encode())
+meta = {"run": args.run, "every": args.every, "targets": args.targets, "top": args.top}
+atomic_write(args.out, json.dumps({"devices": jax.device_count(), **meta, "rows": rows}, indent=1).encode())

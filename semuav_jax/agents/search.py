@@ -66,6 +66,22 @@ def option_switching(
     return Switching(greedy_policy(network, config), candidate, last + 1, every, samples, top and shortlist)
 
 
+def agent_switching(
+    config: DDQNConfig,
+    params: EnvParams,
+    every: int = SEARCH_EVERY,
+    samples: int = SEARCH_SAMPLES,
+    targets: int = SEARCH_TARGETS,
+    top: int | None = SEARCH_TOP,
+) -> Switching:
+    """The search of an agent of ``config``: :func:`option_switching` for option agents, else
+    :func:`search_switching` over all its actions (``targets`` and ``top`` are the options')."""
+    network = q_network(params, config)
+    if config.uses_options:
+        return option_switching(network, config, every, samples, targets, top)
+    return search_switching(network, config, every, samples, num_actions(params, config))
+
+
 def search_metrics(
     net: Any,
     config: DDQNConfig,
@@ -78,9 +94,4 @@ def search_metrics(
 ) -> tuple[dict[str, jax.Array], jax.Array, None]:
     """Per-episode metrics of the agent with search (weights ``net`` of one seed), the (E,
     decisions) chosen candidates (0: the agent's own action) and None (no trace)."""
-    network = q_network(params, config)
-    if config.uses_options:
-        sw = option_switching(network, config, every, samples, targets, top)
-    else:
-        sw = search_switching(network, config, every, samples, num_actions(params, config))
-    return rollout_switching(sw, keys, params, net)
+    return rollout_switching(agent_switching(config, params, every, samples, targets, top), keys, params, net)
