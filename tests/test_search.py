@@ -92,6 +92,10 @@ def test_the_search_command_says_what_to_run_first(tmp_path, capsys):
         main([str(folder), "--episodes", "4", "--tuning", str(tmp_path / "none.json")])
     err = capsys.readouterr().err
     assert e.value.code == 2 and f"{tmp_path / 'none.json'} has no dwell tuning" in err, err
+    with pytest.raises(SystemExit) as e:  # a bad search knob: one line before any reference is flown
+        main([str(ROOT / "semuav_jax" / "data" / "agent"), "--episodes", "4", "--every", "0"])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and "every must be an integer >= 1, got 0" in err, err
 
 
 def test_option_search_goes_on_with_the_agent_or_starts_an_option(curves):

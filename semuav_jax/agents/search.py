@@ -63,7 +63,7 @@ def option_switching(
 
     if top is not None and not 1 <= top <= last:
         raise ValueError(f"top must be in [1, {last}] (the options of {targets} targets and home), got {top!r}")
-    return Switching(greedy_policy(network, config), candidate, last + 1, every, samples, top and shortlist)
+    return Switching(greedy_policy(network, config), candidate, last + 1, every, samples, shortlist if top else None)
 
 
 def agent_switching(

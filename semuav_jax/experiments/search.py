@@ -27,8 +27,9 @@ from baselines.report import BANDWIDTHS, certified_bound, switch_metrics
 from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.network import q_network
 from semuav_jax.agents.runs import EVAL_FILE, load_run
-from semuav_jax.agents.search import SEARCH_EVERY, SEARCH_TARGETS, SEARCH_TOP, search_metrics
+from semuav_jax.agents.search import SEARCH_EVERY, SEARCH_TARGETS, SEARCH_TOP, agent_switching, search_metrics
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
+from semuav_jax.lookahead import check_switching
 from semuav_jax.sharding import map_episodes
 from semuav_jax.stats import mean_ci, pm
 
@@ -68,6 +69,7 @@ def compare_search(
     if missing:
         raise ValueError(f"{source} has no dwell tuning at B = {missing}")
     params = run.env_params()
+    check_switching(agent_switching(run.agent, params, every, 1, targets, top))  # bad knobs fail before the references
     network = q_network(params, run.agent)
     seed = VALIDATION_SEED if validation else TEST_SEED
     keys = episode_keys(seed, episodes)
