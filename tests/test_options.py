@@ -84,7 +84,7 @@ def test_constant_options_are_the_dwell_rules(params):
     (the BS's shield flies home instead) and the tour's few metres."""
     from baselines.dwell import dwell_metrics, greedy_dwell, tsp_dwell
     from baselines.evaluate import tsp_ranks
-    from semuav_jax.agents.policy import _policy, initial_state
+    from semuav_jax.agents.policy import choice_policy, initial_state
     from semuav_jax.rollout import rollout
 
     cfg = DDQNConfig(actions="option", shield_margin=2.0)
@@ -95,7 +95,7 @@ def test_constant_options_are_the_dwell_rules(params):
         (TOUR_TARGETS * L + i, greedy_dwell, np.zeros((32, 10), np.int32)),
         (i, tsp_dwell, rank),
     ):
-        pol = _policy(lambda inner, x, p, c=choice: jnp.int32(c), cfg)
+        pol = choice_policy(lambda inner, x, p, c=choice: jnp.int32(c), cfg)
         m = rollout(pol, keys, params, initial_state(jnp.zeros(()), cfg), state_axes=None)[0]
         g = dwell_metrics(rule, keys, params, DWELL_SPEED, 48.0, -2.0, ranks)
         assert bool(np.all(m["arrived"]))

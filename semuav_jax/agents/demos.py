@@ -19,7 +19,7 @@ import jax.numpy as jnp
 
 from semuav_jax.actions import OPTION_K
 from semuav_jax.agents.config import DDQNConfig
-from semuav_jax.agents.policy import _policy
+from semuav_jax.agents.policy import choice_policy
 from semuav_jax.engine import Policy
 
 
@@ -32,8 +32,8 @@ def expert_choice(B: jax.Array, config: DDQNConfig) -> jax.Array:
 
 @functools.cache
 def expert_policy(config: DDQNConfig) -> Policy:
-    """The expert as an option policy (``policy._policy``), through the agent's shield."""
-    return _policy(lambda inner, x, params: expert_choice(params.B, config), config)
+    """The expert as an option policy (``policy.choice_policy``), through the agent's shield."""
+    return choice_policy(lambda inner, x, params: expert_choice(params.B, config), config)
 
 
 def margin_loss(q: jax.Array, action: jax.Array, margin: float) -> jax.Array:

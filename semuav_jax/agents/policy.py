@@ -69,7 +69,7 @@ def network_input(obs: Any) -> jax.Array:
     return getattr(obs, "x", obs)
 
 
-def _policy(choose: Callable, config: DDQNConfig) -> Policy:
+def choice_policy(choose: Callable, config: DDQNConfig) -> Policy:
     """The Policy that chooses ``choose(inner, x, params)`` in every slot, or, for options, at every
     decision (``agents/options.py``), through the shield."""
     if config.uses_options:
@@ -83,7 +83,7 @@ def _policy(choose: Callable, config: DDQNConfig) -> Policy:
 def greedy_policy(network: QNetwork, config: DDQNConfig) -> Policy:
     """The trained agent: argmax Q of its input, through the shield. Policy state:
     :func:`initial_state` of the weights."""
-    return _policy(lambda net, x, params: jnp.argmax(network.apply(net, x)), config)
+    return choice_policy(lambda net, x, params: jnp.argmax(network.apply(net, x)), config)
 
 
 @struct.dataclass
@@ -104,4 +104,4 @@ def explore_policy(network: QNetwork, config: DDQNConfig) -> Policy:
     def choose(ps: Explore, x: jax.Array, params: EnvParams) -> jax.Array:
         return jnp.where(ps.u < ps.eps, ps.random_action, jnp.argmax(network.apply(ps.net, x)))
 
-    return _policy(choose, config)
+    return choice_policy(choose, config)
