@@ -1,5 +1,6 @@
 """Demonstrations (agents/demos.py, DQfD): the expert's choice by bandwidth, the large-margin loss
-by hand, the demonstration memory holding the expert's decisions, and bad settings refused."""
+by hand, the demonstration memory holding the expert's decisions, the switch expert against a plain
+loop over its candidates, and bad settings refused."""
 
 import jax
 import jax.numpy as jnp
@@ -8,8 +9,13 @@ import pytest
 
 from semuav_jax.actions import OPTION_K
 from semuav_jax.agents.config import DDQNConfig
-from semuav_jax.agents.demos import expert_choice, margin_loss
+from semuav_jax.agents.demos import SWITCH_OPTIONS, expert_choice, margin_loss, switch_choices
+from semuav_jax.agents.options import idle, idle_batch
+from semuav_jax.agents.policy import choice_policy
 from semuav_jax.agents.trainer import make_train, update
+from semuav_jax.env import reset_state
+from semuav_jax.lookahead import score
+from semuav_jax.rollout import episode
 
 CFG = DDQNConfig(actions="option", demo_steps=40, num_envs=4, steps_per_chunk=5, total_steps=80,
                  learning_starts=32, batch_size=8, demo_batch=4, buffer_size=256)  # fmt: skip
@@ -72,6 +78,39 @@ def test_updates_on_mixed_minibatches_learn_the_experts_choices(params):
     assert agree(ts) >= 0.95 > before
 
 
+def test_the_switch_expert_takes_the_best_constant_option_of_a_plain_loop(params):
+    """From a fresh state at 5 and 40 kHz, the switch expert's option is the constant option of
+    SWITCH_OPTIONS that scores best (eq. 7.15) flown to the end with the env's delay draws, found by
+    a plain loop over the candidates, one episode each."""
+    cfg = DDQNConfig(**{**CFG.to_dict(), "demo_expert": "switch"})
+    B = jnp.array([5e3, 40e3], jnp.float32)
+    env = params.replace(B=B)
+    axes = jax.tree.map(lambda _: None, params).replace(B=0)
+    states = jax.vmap(reset_state, (0, axes))(jax.random.split(jax.random.key(4), 2), env)
+    key = jax.random.key(5)
+    got = np.asarray(switch_choices(cfg, states, idle_batch((2,)), key, env, axes))
+    constant = choice_policy(lambda option, x, params: option, cfg)
+    fly = jax.jit(lambda o, state, p, draws: score(episode(constant, draws, p, (o, idle()), state)[0], p))
+    for e, k in enumerate(jax.random.split(key, 2)):
+        state, p = jax.tree.map(lambda x, e=e: x[e], states), params.replace(B=B[e])
+        draws = jax.random.split(k, 1)[0]  # the one delay draw of each candidate (lookahead.choose)
+        scores = [float(fly(jnp.int32(o), state, p, draws)) for o in SWITCH_OPTIONS]
+        assert got[e] == SWITCH_OPTIONS[int(np.argmax(scores))]
+        assert len(set(np.round(scores, 3))) > 1  # the candidates differ, so the choice is not a tie-break
+
+
+def test_switch_demonstrations_hold_the_simulated_options(params):
+    """The switch expert's memory holds its decisions: options of SWITCH_OPTIONS (the constant
+    expert's after a restart), finite rewards, discounts gamma^tau in (0, 1]."""
+    cfg = DDQNConfig(**{**CFG.to_dict(), "demo_expert": "switch", "demo_every": 8})
+    ts = jax.jit(make_train(cfg, params).init)(jax.random.key(0))
+    size = int(ts.demos.size)
+    assert size > 0
+    data = jax.tree.map(lambda x: np.asarray(x[:size]), ts.demos.data)
+    assert set(data.action.tolist()) <= set(SWITCH_OPTIONS)
+    assert np.all(np.isfinite(data.reward)) and np.all((data.discount > 0) & (data.discount <= 1))
+
+
 @pytest.mark.parametrize(
     "bad, match",
     [
@@ -84,6 +123,9 @@ def test_updates_on_mixed_minibatches_learn_the_experts_choices(params):
         ({"demo_weight": 0.0}, "demo_weight must be finite and > 0"),
         ({"demo_steps": 10, "demo_batch": 0}, "demo_batch must be in"),
         ({"demo_steps": 10, "demo_batch": 256}, "demo_batch must be in"),
+        ({"demo_expert": "planner"}, "demo_expert must be one of"),
+        ({"demo_every": 0}, "demo_every must be an integer >= 1"),
+        ({"demo_every": 2.5}, "demo_every must be an integer >= 1"),
     ],
 )
 def test_bad_demonstration_settings_are_one_line_errors(bad, match):

@@ -13,6 +13,7 @@ from typing import Any
 
 from semuav_jax.actions import ACTION_MODES, OPTION_K
 
+DEMO_EXPERTS = ("constant", "switch")  # agents/demos.py
 SLOTS_PER_OPTION = 16  # slots a random option lasts, about: sizes the warm-up of option agents
 
 
@@ -63,6 +64,14 @@ class DDQNConfig:
     demo_margin: float = option(0.2, "large margin of Q(s, expert's choice) over every other choice (scaled rewards)")
     demo_k: tuple = option((16.0, 48.0, 32.0), "the expert option's k below, between and above demo_edges")
     demo_edges: tuple = option((7.5e3, 35e3), "Hz: the bandwidths where the expert option's k changes")
+    demo_expert: str = option(
+        "constant",
+        "constant (the option of demo_k and demo_edges at every decision) or switch (every demo_every slots the BS "
+        "simulates each constant option, first along the tour or nearest at every k, to the end of the mission and "
+        "follows the best: dwell-switch in option space, docs/model.md eq. 7.15)",
+        choices=DEMO_EXPERTS,
+    )
+    demo_every: int = option(32, "slots between two decisions of the switch expert")
     bandwidth_range: tuple | None = option(
         (4e3, 45e3),
         "(lo, hi) Hz: the envs train at bandwidths evenly spaced in the range "
@@ -86,6 +95,10 @@ class DDQNConfig:
         for name in ints:
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)}")
+        if self.demo_expert not in DEMO_EXPERTS:
+            raise ValueError(f"demo_expert must be one of {DEMO_EXPERTS}, got {self.demo_expert!r}")
+        if isinstance(self.demo_every, bool) or not isinstance(self.demo_every, int) or self.demo_every < 1:
+            raise ValueError(f"demo_every must be an integer >= 1 (slots), got {self.demo_every!r}")
         if int(self.demo_steps) < 0:
             raise ValueError(f"demo_steps must be >= 0, got {self.demo_steps}")
         if self.demo_steps and not self.uses_options:

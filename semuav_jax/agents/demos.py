@@ -5,22 +5,42 @@ loss and the large-margin loss
 
     J_E = max_a [Q(s, a) + l(a_E, a)] - Q(s, a_E),   l(a_E, a) = demo_margin for a != a_E, else 0,
 
-weighted by ``demo_weight``. The expert is the constant option of docs/model.md eq. 6.4: the first
-device along the tour (eq. 6.5) until k symbols, k = ``demo_k`` by bandwidth (``demo_edges``),
-which is TSP-dwell on the re-planned tour (``actions.option_code``).
+weighted by ``demo_weight``. Two experts (``demo_expert``):
+
+- ``constant``: the constant option of docs/model.md eq. 6.4, the first device along the tour
+  (eq. 6.5) until k symbols, k = ``demo_k`` by bandwidth (``demo_edges``), which is TSP-dwell on the
+  re-planned tour (``actions.option_code``);
+- ``switch``: every ``demo_every`` slots the BS simulates each constant option of
+  :data:`SWITCH_OPTIONS` (first along the tour or nearest, every k) from each env's state to the
+  end of the mission, the running option going on first, and follows the best (eq. 7.15,
+  ``semuav_jax.lookahead``): dwell-switch in option space. An env whose episode restarts within
+  a period follows the constant expert until the next switch.
 """
 
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import jax
 import jax.numpy as jnp
 
-from semuav_jax.actions import OPTION_K
+from semuav_jax.actions import OPTION_K, TOUR_TARGETS
 from semuav_jax.agents.config import DDQNConfig
+from semuav_jax.agents.options import Option, idle
 from semuav_jax.agents.policy import choice_policy
+from semuav_jax.agents.replay import replay_init
+from semuav_jax.agents.smdp import pending_init
 from semuav_jax.engine import Policy
+from semuav_jax.lookahead import Switching, choose
+
+if TYPE_CHECKING:
+    from semuav_jax.env import EnvState
+    from semuav_jax.params import EnvParams
+
+L = len(OPTION_K)
+SWITCH_OPTIONS = tuple(range(L)) + tuple(TOUR_TARGETS * L + i for i in range(L))  # TSP-dwell's, then greedy-dwell's
 
 
 def expert_choice(B: jax.Array, config: DDQNConfig) -> jax.Array:
@@ -32,8 +52,63 @@ def expert_choice(B: jax.Array, config: DDQNConfig) -> jax.Array:
 
 @functools.cache
 def expert_policy(config: DDQNConfig) -> Policy:
-    """The expert as an option policy (``policy.choice_policy``), through the agent's shield."""
+    """The constant expert as an option policy (``policy.choice_policy``), through the agent's shield."""
     return choice_policy(lambda inner, x, params: expert_choice(params.B, config), config)
+
+
+@functools.cache
+def switch_expert(config: DDQNConfig) -> Switching:
+    """Eq. 7.15 over the constant options of :data:`SWITCH_OPTIONS`: candidate c is option
+    SWITCH_OPTIONS[c] at every decision (policy state ``(option id, Option)``), the option running
+    at the switch (``now[1]``) going on first. ``lookahead.rollout_switching`` flies it."""
+    constant = choice_policy(lambda option, x, params: option, config)
+    ids = jnp.asarray(SWITCH_OPTIONS, jnp.int32)
+
+    def candidate(_: Any, __: Any, c: jax.Array, now: Any) -> tuple[jax.Array, Option]:
+        return ids[c], idle() if now is None else now[1]
+
+    return Switching(constant, candidate, len(SWITCH_OPTIONS), config.demo_every)
+
+
+def switch_choices(
+    config: DDQNConfig, states: EnvState, options: Option, key: jax.Array, params: EnvParams, axes: Any
+) -> jax.Array:
+    """(E,) the switch expert's option for every env from its state and running option (``params``
+    vmapped over ``axes``), each candidate simulated with the env's own delay draws of ``key``."""
+    sw, ids = switch_expert(config), jnp.asarray(SWITCH_OPTIONS, jnp.int32)
+    best = lambda s, k, p, o: choose(sw, s, None, None, k, p, (None, o))[0]
+    keys = jax.random.split(key, options.code.shape[0])
+    return ids[jax.vmap(best, (0, 0, axes, 0))(states, keys, params, options)]
+
+
+def demonstrate(tr: Any, ts: Any, key: jax.Array, step: Callable) -> Any:
+    """``ts`` with the demonstration memory: the expert's decisions over ``demo_steps`` vmapped env
+    steps (``switch``: rounded up to whole periods of ``demo_every``) from ``ts``'s envs (their
+    first decisions end nothing), which then go on as they were. ``step(tr, ts, key, eps, action)``
+    is the trainer's env step; ``tr`` its Trainer."""
+    c = tr.config
+    n_in = ts.obs.x.shape[-1]
+    empty = ts.replace(replay=replay_init(c.buffer_size, n_in), window=pending_init(replay_init(c.num_envs, n_in).data))
+    tr = tr._replace(buffer=tr.demo_buffer)
+    if c.demo_expert == "constant":
+        fly = lambda ts, k: (step(tr._replace(policy=expert_policy(c)), ts, k, 0.0, None)[0], None)
+        return ts.replace(demos=jax.lax.scan(fly, empty, jax.random.split(key, c.demo_steps))[0].replay)
+    fallback = expert_choice(tr.env_params.B, c)
+
+    def period(carry: Any, k: jax.Array) -> tuple[Any, None]:
+        k_switch, k_fly = jax.random.split(k)
+        choice = switch_choices(c, carry.env_state, carry.window.option, k_switch, tr.env_params, tr.env_axes)
+
+        def fly(x: tuple[Any, jax.Array], k: jax.Array) -> tuple[tuple[Any, jax.Array], None]:
+            ts, restarted = x  # eps = 1 sends the given choice at every decision
+            ts, (done, _, _) = step(tr, ts, k, 1.0, jnp.where(restarted, fallback, choice))
+            return (ts, restarted | done), None
+
+        restarted = jnp.zeros(c.num_envs, bool)
+        return jax.lax.scan(fly, (carry, restarted), jax.random.split(k_fly, c.demo_every))[0][0], None
+
+    periods = -(-c.demo_steps // c.demo_every)
+    return ts.replace(demos=jax.lax.scan(period, empty, jax.random.split(key, periods))[0].replay)
 
 
 def margin_loss(q: jax.Array, action: jax.Array, margin: float) -> jax.Array:

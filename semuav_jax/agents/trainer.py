@@ -23,7 +23,7 @@ from flax import struct
 from jax.typing import ArrayLike
 
 from semuav_jax.agents.config import DDQNConfig
-from semuav_jax.agents.demos import expert_policy, margin_loss
+from semuav_jax.agents.demos import demonstrate, margin_loss
 from semuav_jax.agents.network import QNetwork, num_actions, q_network
 from semuav_jax.agents.policy import Explore, explore_policy, input_size, network_input
 from semuav_jax.agents.replay import ReplayBuffer, Transition, n_step_transition, replay_init, ring_buffer
@@ -144,13 +144,15 @@ def env_slot(
 
 
 def env_step(
-    tr: Trainer, ts: TrainState, key: jax.Array, eps: jax.Array
+    tr: Trainer, ts: TrainState, key: jax.Array, eps: jax.Array, action: jax.Array | None = None
 ) -> tuple[TrainState, tuple[jax.Array, dict[str, jax.Array], jax.Array]]:
-    """One vmapped env step under epsilon-greedy; the transition enters the n-step window (not yet the memory)."""
+    """One vmapped env step under epsilon-greedy, ``action`` (E,) in place of the random draws if
+    given; the transition enters the n-step window (not yet the memory)."""
     E = tr.config.num_envs
     k_eps, k_rand, k_env = jax.random.split(key, 3)
     n_act = num_actions(tr.env_params, tr.config)
-    ps = Explore(ts.params, eps, jax.random.uniform(k_eps, (E,)), jax.random.randint(k_rand, (E,), 0, n_act))
+    explore = jax.random.randint(k_rand, (E,), 0, n_act) if action is None else action
+    ps = Explore(ts.params, eps, jax.random.uniform(k_eps, (E,)), explore)
     axes = (0, 0, 0, Explore(None, None, 0, 0), tr.env_axes)
     c, option = tr.config, tr.config.uses_options
     if option:
@@ -212,20 +214,7 @@ def init(tr: Trainer, key: jax.Array) -> TrainState:
     if not tr.config.uses_options:
         ts, _ = jax.lax.scan(fill, ts, jax.random.split(k_fill, c.n_step - 1))  # fill the window
     ts, _ = jax.lax.scan(warm, ts, jax.random.split(k_warm, c.warmup_steps))
-    return demonstrate(tr, ts, k_demo) if c.demo_steps else ts
-
-
-def demonstrate(tr: Trainer, ts: TrainState, key: jax.Array) -> TrainState:
-    """``ts`` with the demonstration memory: the decisions of the expert option (agents/demos.py)
-    flying ``demo_steps`` vmapped env steps from ``ts``'s envs (its first decisions end nothing),
-    which then go on as they were."""
-    c = tr.config
-    expert = tr._replace(policy=expert_policy(c), buffer=tr.demo_buffer)
-    fly = lambda ts, k: (env_step(expert, ts, k, 0.0)[0], None)
-    n_in = ts.obs.x.shape[-1]
-    empty = ts.replace(replay=replay_init(c.buffer_size, n_in), window=pending_init(replay_init(c.num_envs, n_in).data))
-    flown, _ = jax.lax.scan(fly, empty, jax.random.split(key, c.demo_steps))
-    return ts.replace(demos=flown.replay)
+    return demonstrate(tr, ts, k_demo, env_step) if c.demo_steps else ts
 
 
 def train_step(tr: Trainer, ts: TrainState, _=None) -> tuple[TrainState, dict[str, jax.Array]]:
