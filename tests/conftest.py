@@ -15,6 +15,15 @@ __all__ = ["synthetic_curves"]
 ROOT = Path(__file__).resolve().parents[1]
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _reference_cache(tmp_path_factory):
+    """The tests' cache of references (experiments.references) is their own, never the user's."""
+    patch = pytest.MonkeyPatch()
+    patch.setenv("SEMUAV_CACHE", str(tmp_path_factory.mktemp("semuav-cache")))
+    yield
+    patch.undo()
+
+
 @pytest.fixture(scope="session")
 def curves():
     return synthetic_curves()

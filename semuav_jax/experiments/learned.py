@@ -16,13 +16,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from baselines.report import BANDWIDTHS, best_arriving, flights, reference_summary, summary, tune
+from baselines.report import BANDWIDTHS, best_arriving, reference_summary, summary, tune
 from baselines.report_table import reference_line
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.network import q_network
 from semuav_jax.distributed import is_main
-from semuav_jax.experiments.fig2 import shared_plans
+from semuav_jax.experiments.references import references
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams
 from semuav_jax.stats import mean_ci, pm, wilson_interval
@@ -46,6 +46,12 @@ MARGINS = (
 )  # every reference the agent is compared with, paired
 
 
+def bandwidths_of(config: DDQNConfig, params: EnvParams) -> tuple[float, ...]:
+    """The bandwidths a run is evaluated at: ``BANDWIDTHS`` for an agent trained over a range of B,
+    else its env's B."""
+    return tuple(BANDWIDTHS) if config.bandwidth_range is not None else (float(params.B),)
+
+
 def _header(names: Iterable[str]) -> str:
     return " | ".join(f"− {n.replace('tsp', 'TSP')}" for n in names)
 
@@ -61,13 +67,14 @@ def compare(
     workers: int = 2,
     ablate_shield: bool = True,
     log: Callable[[str], None] = print,
+    cache: bool = True,
 ) -> dict:
-    """Every number of the table of docs/ddqn.md (JSON-ready) for the seeds ``nets`` of one agent."""
-    tuned = tune(params, bandwidths, validation_episodes, workers=workers)
+    """Every number of the table of docs/ddqn.md (JSON-ready) for the seeds ``nets`` of one agent;
+    the references from ``experiments.references`` (cached unless ``cache`` is False)."""
+    refs = references(params, bandwidths, episodes, validation_episodes, workers, log=log, cache=cache)
+    tuned, refs = refs["tuning"], refs["flights"]
     log("v_b* on validation layouts: " + ", ".join(f"{n} {tuned[n]['v_star']}" for n in ("greedy", "tsp")))
     keys = episode_keys(TEST_SEED, episodes)
-    plans = [shared_plans(keys, params.replace(B=b), workers) for b in bandwidths]  # each process plans its share
-    refs = flights(params, keys, tuned, bandwidths, workers, plans=plans)
     unshielded = dataclasses.replace(config, shield_margin=None)
     per_seed = seed_metrics(network, nets, config, keys, params, bandwidths)
     if ablate_shield and config.shield_margin is not None:
@@ -202,7 +209,7 @@ def _evaluate_run(
     run, nets = load_run(folder)
     params, config = run.env_params(), run.agent
     network = q_network(params, config)
-    bandwidths = BANDWIDTHS if config.bandwidth_range is not None else (float(params.B),)
+    bandwidths = bandwidths_of(config, params)
     pick = lambda given, saved: saved if given is None else given
     counts = pick(episodes, run.eval_episodes), pick(validation_episodes, run.validation_episodes)
     r = compare(network, nets, config, params, bandwidths, *counts, pick(workers, run.workers), log=log)

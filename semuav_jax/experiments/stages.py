@@ -69,19 +69,19 @@ class Stages:
             return saved[0]
         out = compute()
         if self.folder is not None and is_main():
-            blob = {"format": FORMAT, "key": self.key, "value": _packable(save(out))}
+            blob = {"format": FORMAT, "key": self.key, "value": packable(save(out))}
             self.folder.write(rel, serialization.msgpack_serialize(blob))
         self.log(name + describe(out))
         return out
 
 
-def _packable(x: Any) -> Any:
+def packable(x: Any) -> Any:
     """x with tuples as lists and NumPy scalars as Python numbers (what msgpack takes); a restored
     step compares equal in JSON."""
     if isinstance(x, dict):
-        return {k: _packable(v) for k, v in x.items()}
+        return {k: packable(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
-        return [_packable(v) for v in x]
+        return [packable(v) for v in x]
     if isinstance(x, np.generic):
         return x.item()
     return np.asarray(x) if isinstance(x, jax.Array) else x
