@@ -123,3 +123,34 @@ def test_the_shipped_flights_are_what_this_code_flies():
         shipped = entry["flights"][j][name]
         np.testing.assert_array_equal(m["arrived"], shipped["arrived"][:40], err_msg=name)
         np.testing.assert_allclose(m["mean_psnr"], shipped["mean_psnr"][:40], atol=1e-3, err_msg=name)
+
+
+def test_search_reads_the_cached_flights_at_the_same_knobs():
+    """semuav-search takes TSP-dwell, dwell-switch and the exact planner from the cache when the
+    run's eval.json was written from it (same counts, same tuning), a prefix for fewer layouts."""
+    import copy
+    import json
+
+    from semuav_jax.experiments.search import VERSUS, _cached_flights
+
+    cfg, params, args = _default()
+    saved = json.loads((R.SHIPPED.parent / "agent" / "eval.json").read_text())
+    entry = R.lookup(*args)
+    got = _cached_flights(params, saved, 100)
+    assert sorted(got) == [float(b) for b in args[1]]
+    for j, b in enumerate(args[1]):
+        assert sorted(got[float(b)]) == sorted(VERSUS[1:])
+        for name, m in got[float(b)].items():
+            np.testing.assert_array_equal(m["mean_psnr"], np.asarray(entry["flights"][j][name]["mean_psnr"])[:100])
+            assert (
+                abs(
+                    float(np.mean(entry["flights"][j][name]["mean_psnr"]))
+                    - saved["rows"][j]["references"][name]["mean_psnr"]
+                )
+                < 1e-4
+            )
+    assert _cached_flights(params, saved, cfg.eval_episodes + 1) is None  # more layouts than cached
+    other = copy.deepcopy(saved)
+    other["tuning"]["tsp-dwell"]["knobs"][0][1] += 8.0  # other knobs: not these flights
+    assert _cached_flights(params, other, 100) is None
+    assert _cached_flights(params.replace(B=float(params.B) + 1.0), saved, 100) is None  # another env

@@ -121,6 +121,15 @@ def compute(
     return out
 
 
+def lookup(params: EnvParams, bandwidths: Sequence[float], episodes: int, validation_episodes: int) -> dict | None:
+    """The shipped or the user's cached entry of this key, or None unless every process holds it."""
+    key = cache_key(params, bandwidths, episodes, validation_episodes)
+    name, folder = entry_name(key), user_cache()
+    places = [SHIPPED / name] + ([folder / name] if folder is not None else [])
+    found = next((v for v in (_load(p, key) for p in places) if v is not None), None)
+    return found if agree(found is not None) else None
+
+
 def references(
     params: EnvParams,
     bandwidths: Sequence[float],
@@ -132,17 +141,16 @@ def references(
 ) -> dict:
     """:func:`compute`'s result, read from the shipped or the user's cache when an entry holds this
     key, else computed (and saved in the user's cache)."""
-    key = cache_key(params, bandwidths, episodes, validation_episodes)
-    name, folder = entry_name(key), user_cache() if cache else None
-    places = [SHIPPED / name] + ([folder / name] if folder is not None else [])
-    found = next((v for v in (_load(p, key) for p in places) if v is not None), None) if cache else None
-    if agree(found is not None):  # every process holds the entry
-        log(f"references: the cached {name} (same env, layouts, bandwidths and code)")
+    found = lookup(params, bandwidths, episodes, validation_episodes) if cache else None
+    if found is not None:
+        log("references: cached (same env, layouts, bandwidths and code)")
         return found
     out = compute(params, bandwidths, episodes, validation_episodes, workers, log)
+    folder = user_cache() if cache else None
     if folder is not None and is_main():
+        key = cache_key(params, bandwidths, episodes, validation_episodes)
         try:
-            _save(folder / name, key, out)
+            _save(folder / entry_name(key), key, out)
         except OSError as e:  # a read-only home: the result stands, it is only not kept
             log(f"references: not cached ({e})")
     return out

@@ -28,8 +28,11 @@ from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.network import q_network
 from semuav_jax.agents.runs import EVAL_FILE, load_run
 from semuav_jax.agents.search import SEARCH_EVERY, SEARCH_TARGETS, SEARCH_TOP, agent_switching, search_metrics
+from semuav_jax.experiments.references import lookup
+from semuav_jax.experiments.stages import packable
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.lookahead import check_switching
+from semuav_jax.params import EnvParams
 from semuav_jax.sharding import map_episodes
 from semuav_jax.stats import mean_ci, pm
 
@@ -76,15 +79,19 @@ def compare_search(
     rank = np.asarray(tsp_ranks(keys, params, workers=run.workers))
     seeds = jax.tree.leaves(nets)[0].shape[0]
     agent = seed_metrics(network, nets, run.agent, keys, params, bandwidths)
+    flown = None if validation else _cached_flights(params, saved, episodes)
     rows = []
     for j, b in enumerate(bandwidths):
         pb = params.replace(B=float(b))
         (v_c, k_star, margin), (sv, sm) = knobs[float(b)]
-        refs = {
-            "tsp-dwell": jax.tree.map(np.asarray, dwell_metrics(tsp_dwell, keys, pb, v_c, k_star, margin, rank)),
-            "dwell-switch": switch_metrics(keys, pb, sv, sm, rank),
-            "exact planner": receding.fly(keys, pb, workers=run.workers)[0],
-        }
+        if flown is not None and float(b) in flown:
+            refs = flown[float(b)]
+        else:
+            refs = {
+                "tsp-dwell": jax.tree.map(np.asarray, dwell_metrics(tsp_dwell, keys, pb, v_c, k_star, margin, rank)),
+                "dwell-switch": switch_metrics(keys, pb, sv, sm, rank),
+                "exact planner": receding.fly(keys, pb, workers=run.workers)[0],
+            }
         bound = certified_bound(keys, pb)
         row = {"B": float(b), "seeds": [], "references": {k: mean_ci(m["mean_psnr"]) for k, m in refs.items()}}
         row["references"]["bound"] = mean_ci(bound)
@@ -125,6 +132,24 @@ def compare_search(
         "top": top if run.agent.uses_options else None,
         "seeds": seeds,
         "rows": rows,
+    }
+
+
+def _cached_flights(params: EnvParams, saved: dict, episodes: int) -> dict[float, dict] | None:
+    """{B: the references of :data:`VERSUS` on the first ``episodes`` test layouts} from the cached
+    references (``experiments.references``) of the evaluation ``saved`` (an eval.json), when it holds
+    them at the same knobs; else None."""
+    counts = saved.get("episodes"), saved.get("validation_episodes")
+    if not all(isinstance(c, int) for c in counts) or episodes > counts[0]:
+        return None
+    found = lookup(params, [row["B"] for row in saved["rows"]], *counts)
+    as_json = lambda x: json.dumps(packable(x), sort_keys=True, default=lambda a: np.asarray(a).tolist())
+    if found is None or as_json(found["tuning"]) != as_json(saved["tuning"]):
+        return None
+    names = VERSUS[1:]
+    return {
+        float(row["B"]): {n: {"mean_psnr": np.asarray(f[n]["mean_psnr"])[:episodes]} for n in names}
+        for row, f in zip(saved["rows"], found["flights"])
     }
 
 
