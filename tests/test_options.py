@@ -195,3 +195,36 @@ def test_option_training_stores_decisions_and_reproduces(curves):
     for a, b in zip(jax.tree.leaves(ts.params), jax.tree.leaves(ts2.params)):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     assert np.all(np.isfinite(np.asarray(m["loss"])))
+
+
+def test_option_inputs_by_hand(state, params):
+    """option_features: the waypoint input, then per option (gain on its device's curve, stay, slack
+    after it, has a device). From (40, 300) the nearest options all serve device 5 (no symbols yet):
+    gain C[i_5, k] - phi_5 over the range of C, stay k beta / R(0), slack = time left - the flight
+    via device 5 home - stay, both over T; with every device finished there is no option to describe."""
+    from semuav_jax import channel
+    from semuav_jax.agents.features import option_features, waypoint_features
+    from semuav_jax.control import time_via
+
+    x = np.asarray(jax.jit(option_features)(state, params))
+    base = np.asarray(waypoint_features(state, params))
+    np.testing.assert_allclose(x[: base.size], base, rtol=1e-5, atol=1e-6)  # jit rounds differently
+    block = x[base.size :].reshape(OPTION_HOME, 4)
+    C, T = np.asarray(params.C), params.K * params.tau
+    span = C.max() - C.min()
+    rate = float(channel.rest_rate(params)) / params.beta  # symbols per second at a hover
+    via = float(time_via(state.q, state.v, state.dev_pos[5], DWELL_SPEED, params, stop=True))
+    img, phi = int(state.dev_img[5]), float(state.phi[5])
+    for i, k in enumerate(OPTION_K):
+        gain, stay, slack, has = block[TOUR_TARGETS * L + i]
+        assert has == 1.0
+        np.testing.assert_allclose(gain, max(C[img, int(k)] - phi, 0.0) / span, rtol=1e-5)
+        np.testing.assert_allclose(stay, k / rate / T, rtol=1e-5)
+        np.testing.assert_allclose(slack, (params.K * params.tau - via - k / rate) / T, rtol=1e-5, atol=1e-6)
+    done = state.replace(m=jnp.full(10, float(params.M)))
+    assert not np.any(np.asarray(option_features(done, params))[base.size :])
+
+
+def test_option_inputs_need_options():
+    with pytest.raises(ValueError, match="option_inputs"):
+        DDQNConfig(actions="waypoint", option_inputs=True)

@@ -54,6 +54,11 @@ class DDQNConfig:
         "nearest device), option (eq. 6.4: serve one of the 4 nearest devices until k symbols, or go home; "
         "one decision per option) or table (the paper's 9 accelerations)",
     )
+    option_inputs: bool = option(
+        False,
+        "options: add to the input, for every option, the PSNR its device's curve adds, the seconds its stay "
+        'takes and the time slack it leaves (docs/ddqn.md, "Input")',
+    )
     demo_steps: int = option(
         0,
         "vmapped env steps the expert option (the first along the tour, k by bandwidth: demo_k, demo_edges) flies "
@@ -101,6 +106,8 @@ class DDQNConfig:
             raise ValueError(f"demo_every must be an integer >= 1 (slots), got {self.demo_every!r}")
         if int(self.demo_steps) < 0:
             raise ValueError(f"demo_steps must be >= 0, got {self.demo_steps}")
+        if self.option_inputs and not self.uses_options:
+            raise ValueError("option_inputs describe options: they need actions='option'")
         if self.demo_steps and not self.uses_options:
             raise ValueError("demonstrations (demo_steps > 0) come from an expert option: they need actions='option'")
         if self.demo_steps and not 1 <= int(self.demo_batch) < self.batch_size:

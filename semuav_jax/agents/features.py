@@ -5,7 +5,9 @@ so that an MLP can use it. Fixed transforms without parameters.
   blocks sorted nearest first and a ``tanh(20 x)`` companion for every relative offset;
 - :func:`waypoint_features` (waypoint actions, eq. 6.2): device blocks in the order the actions
   address them, each with its remaining PSNR gain and the time slack left after flying through it
-  and home (eqs. 7.4-7.5), plus the bandwidth and the hover rate, so one network serves every B.
+  and home (eqs. 7.4-7.5), plus the bandwidth and the hover rate, so one network serves every B;
+- :func:`option_features` (options, eq. 6.4, ``option_inputs``): those, and for every option what
+  it would bring and cost, read off its device's PSNR curve.
 """
 
 from __future__ import annotations
@@ -16,10 +18,11 @@ import jax
 import jax.numpy as jnp
 
 from semuav_jax import channel
-from semuav_jax.actions import device_order
+from semuav_jax.actions import DWELL_SPEED, OPTION_HOME, OPTION_K, device_order, option_code, option_fits
 from semuav_jax.control import time_home, time_via
 from semuav_jax.observation import DEVICE_FEATURES, GLOBAL_FEATURES
 from semuav_jax.params import EnvParams
+from semuav_jax.tour import tour_order
 
 if TYPE_CHECKING:
     from semuav_jax.env import EnvState
@@ -93,3 +96,26 @@ def waypoint_features(state: EnvState, params: EnvParams) -> jax.Array:
         axis=-1,
     )
     return jnp.concatenate([glob, dev.reshape(-1)]).astype(jnp.float32)
+
+
+def option_features(state: EnvState, params: EnvParams) -> jax.Array:
+    """:func:`waypoint_features`, then for each option c < OPTION_HOME (eq. 6.4) of the device n it
+    would serve: the PSNR it adds, C[i_n, k] - phi_n (by the range of C; the curve is what the BS
+    knows of the device's image), the seconds its stay takes at the hover rate, (k - m_n)+ beta / R(0),
+    and the slack it leaves, time left - flight via n home (eqs. 7.4-7.5) - that stay, both / T,
+    and whether it has a device. Zeros for an option without one."""
+    fits = option_fits(state, params)
+    tour = tour_order(state.q, state.dev_pos, fits & (state.m < OPTION_K[0] - 1e-3), params.q_fin)
+    order = device_order(state, params)
+    codes, ks = jax.vmap(lambda c: option_code(c, state.m, fits, order, tour, params))(jnp.arange(OPTION_HOME))
+    has = codes >= 0
+    n = jnp.maximum(codes, 0)
+    k = jnp.minimum(jnp.where(has, ks, 0.0), params.M)
+    T = params.K * params.tau
+    span = jnp.maximum(jnp.max(params.C) - jnp.min(params.C), 1e-6)
+    gain = jnp.maximum(params.C[state.dev_img[n], k.astype(jnp.int32)] - state.phi[n], 0.0) / span
+    stay = jnp.maximum(k - state.m[n], 0.0) * params.beta / channel.rest_rate(params)
+    via = jax.vmap(lambda p: time_via(state.q, state.v, p, DWELL_SPEED, params, stop=True))(state.dev_pos[n])
+    slack = ((params.K - state.t) * params.tau - via - stay) / T
+    block = jnp.stack([gain, stay / T, slack, jnp.ones_like(gain)], axis=-1) * has[:, None]
+    return jnp.concatenate([waypoint_features(state, params), block.reshape(-1)]).astype(jnp.float32)

@@ -14,7 +14,7 @@ from flax import struct
 
 from semuav_jax.actions import HOME, HOME_CODE
 from semuav_jax.agents.config import DDQNConfig
-from semuav_jax.agents.features import table_features, waypoint_features
+from semuav_jax.agents.features import option_features, table_features, waypoint_features
 from semuav_jax.agents.options import idle, option_act, option_observe
 from semuav_jax.agents.shield import shield, waypoint_shield
 from semuav_jax.engine import Policy
@@ -29,6 +29,8 @@ if TYPE_CHECKING:
 
 def agent_input(state: EnvState, params: EnvParams, config: DDQNConfig) -> jax.Array:
     """The Q-network's input for one ``EnvState`` (``agents/features.py``)."""
+    if config.option_inputs:
+        return option_features(state, params)
     if config.actions != "table":  # waypoint, dwell and option actions (eqs. 6.2-6.4)
         return waypoint_features(state, params)
     obs = observation(state, params)
