@@ -8,7 +8,6 @@ from flax import serialization
 
 from semuav_jax.agents.run_config import RunConfig
 from semuav_jax.experiments import references as R
-from semuav_jax.experiments.learned import bandwidths_of
 from semuav_jax.keys import TEST_SEED, episode_keys
 
 
@@ -91,7 +90,7 @@ def test_cached_entry_is_reused_only_when_it_parses(params, counted, tmp_path, m
 def _default():
     cfg = RunConfig.from_preset("default", command="")
     params = cfg.env_params()
-    return cfg, params, (params, bandwidths_of(cfg.agent, params), cfg.eval_episodes, cfg.validation_episodes)
+    return cfg, params, (params, R.bandwidths_of(cfg.agent, params), cfg.eval_episodes, cfg.validation_episodes)
 
 
 def test_the_shipped_entry_is_the_default_runs_at_this_code():

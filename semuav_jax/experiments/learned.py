@@ -22,7 +22,7 @@ from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.network import q_network
 from semuav_jax.distributed import is_main
-from semuav_jax.experiments.references import references
+from semuav_jax.experiments.references import bandwidths_of, references
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
 from semuav_jax.params import EnvParams
 from semuav_jax.stats import mean_ci, pm, wilson_interval
@@ -44,12 +44,6 @@ MARGINS = (
     "exact planner",
     "plan-switch",
 )  # every reference the agent is compared with, paired
-
-
-def bandwidths_of(config: DDQNConfig, params: EnvParams) -> tuple[float, ...]:
-    """The bandwidths a run is evaluated at: ``BANDWIDTHS`` for an agent trained over a range of B,
-    else its env's B."""
-    return tuple(BANDWIDTHS) if config.bandwidth_range is not None else (float(params.B),)
 
 
 def _header(names: Iterable[str]) -> str:
