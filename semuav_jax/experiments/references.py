@@ -167,9 +167,8 @@ def references(
 
 def main(argv: list[str] | None = None) -> int:
     """Write the default run's entry into the package: ``python -m semuav_jax.experiments.references``."""
-    argparse.ArgumentParser(description="Recompute the shipped references of the default run (about 20 min).").parse_args(
-        argv
-    )
+    ap = argparse.ArgumentParser(description="Recompute the shipped references of the default run (about 20 min).")
+    ap.parse_args(argv)
     cfg = RunConfig.from_preset("default", command="")
     params = cfg.env_params()
     args = (params, bandwidths_of(cfg.agent, params), cfg.eval_episodes, cfg.validation_episodes)
