@@ -30,10 +30,9 @@ ap.add_argument("--shield-margins", type=float, nargs="+", default=[2.0, 0.0], h
 ap.add_argument("--switch", action="store_true", help="also the switch expert")
 args = ap.parse_args()
 
-default = RunConfig.from_preset("default", command="")
 run = RunConfig.from_preset("default", agent={"actions": "option", "demo_expert": "switch"})
 base = run.env_params()
-tuned = references(base, BANDWIDTHS, default.eval_episodes, default.validation_episodes)["tuning"]
+tuned = references(base, BANDWIDTHS, run.eval_episodes, run.validation_episodes)["tuning"]
 keys = episode_keys(VALIDATION_SEED, args.episodes)
 rank = jnp.asarray(tsp_ranks(keys, base))
 for j, B in enumerate(BANDWIDTHS):
