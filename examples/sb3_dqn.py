@@ -8,8 +8,8 @@ stable-baselines3 and torch are not dependencies of semuav-jax; install them nex
 DQN learns on ``semuav_jax.sb3.SemUAVVecEnv`` (``--envs`` episodes stepped in one jitted call) with
 the 16 waypoint actions of eq. 6.2, the action space our DDQN uses. Then every policy flies the
 same ``--episodes`` test layouts, drawn by one ``SemUAVVectorEnv`` seeded TEST_SEED + i: DQN greedy,
-DQN behind the BS's shield (``VectorShieldWrapper``), the shipped DDQN (its own input features and
-shield) and uniformly random waypoint actions step that env; greedy-dwell and TSP-dwell (the
+DQN behind the BS's shield (``VectorShieldWrapper``) and uniformly random waypoint actions step that
+env; the shipped DDQN (its own input features, options and shield), greedy-dwell and TSP-dwell (the
 references of docs/baselines.md, at the knobs tuned on the validation layouts and recorded in the
 shipped agent's eval.json) fly ``rollout`` from the same initial states. Prints mean PSNR (eq. 8.1)
 with its 95 % CI, arrival per policy and the wall times; numbers in docs/env_api.md.
@@ -30,6 +30,7 @@ from baselines.report import tune
 from baselines.tsp import solve_orders
 from semuav_jax.agents.agent import Agent
 from semuav_jax.agents.gym_shield import VectorShieldWrapper
+from semuav_jax.agents.policy import greedy_policy, initial_state
 from semuav_jax.agents.runs import shipped_folder
 from semuav_jax.experiments.animation import shipped_tuned_speeds
 from semuav_jax.gym_vector import SemUAVVectorEnv
@@ -52,19 +53,22 @@ def score(env, act, episodes: int) -> tuple[np.ndarray, np.ndarray]:
     return psnr, arrived
 
 
-def dwell_scores(test: SemUAVVectorEnv, knobs: dict, episodes: int) -> dict:
-    """PSNR and arrival of greedy-dwell and TSP-dwell at ``knobs`` ({name: (v_c, k*, margin)}) from
-    the test env's initial states (the same layouts; ``rollout`` draws its own delays)."""
+def rollout_scores(test: SemUAVVectorEnv, agent: Agent, knobs: dict, episodes: int) -> dict:
+    """PSNR and arrival of the shipped DDQN (its own input, options and shield) and of greedy-dwell
+    and TSP-dwell at ``knobs`` ({name: (v_c, k*, margin)}) from the test env's initial states (the
+    same layouts; ``rollout`` draws its own delays)."""
     test.reset(seed=TEST_SEED)
     s0, p = jax.device_get(test.state), test.env_params
+    keys = episode_keys(TEST_SEED, episodes)
+    ddqn = greedy_policy(agent.network, agent.config)
+    m = rollout(ddqn, keys, p, initial_state(agent.weights, agent.config), init_state=s0, state_axes=None)[0]
+    out = {"our DDQN (shipped: its own input features, actions and shield)": m}
     order = solve_orders(s0.dev_pos, np.asarray(p.q0), np.asarray(p.q_fin))
     rank = np.argsort(order, axis=-1).astype(np.int32)
-    out = {}
     for name, policy in DWELL_POLICIES.items():
         ps = jax.vmap(init_dwell, (None, None, None, 0))(*knobs[name], rank)
-        m = rollout(policy, episode_keys(TEST_SEED, episodes), p, ps, init_state=s0)[0]
-        out[f"{name} {knobs[name]}"] = (np.asarray(m["mean_psnr"]), np.asarray(m["arrived"]))
-    return out
+        out[f"{name} {knobs[name]}"] = rollout(policy, keys, p, ps, init_state=s0)[0]
+    return {name: (np.asarray(m["mean_psnr"]), np.asarray(m["arrived"])) for name, m in out.items()}
 
 
 def dwell_knobs(params, B: float, validation: int) -> dict:
@@ -109,18 +113,14 @@ def main() -> None:
     train_s = time.perf_counter() - t0
 
     test = SemUAVVectorEnv(num_envs=args.episodes, **params)
-    agent = Agent.shipped()
-    agent_act = jax.jit(jax.vmap(lambda s, p: agent.act(s, p)[0], (0, None)))
     rng = np.random.default_rng(args.seed)
     dqn = lambda obs: model.predict(obs, deterministic=True)[0]
     rows = {
         f"SB3 DQN, {args.timesteps} steps": score(test, dqn, args.episodes),
         "SB3 DQN behind the shield": score(VectorShieldWrapper(test), dqn, args.episodes),
-        "our DDQN (shipped, shield)": score(
-            test, lambda obs: np.asarray(agent_act(test.state, test.env_params)), args.episodes
-        ),
     }
-    rows |= dwell_scores(test, dwell_knobs(test.env_params, args.B, args.validation_layouts), args.episodes)
+    knobs = dwell_knobs(test.env_params, args.B, args.validation_layouts)
+    rows |= rollout_scores(test, Agent.shipped(), knobs, args.episodes)
     rows["random waypoint actions"] = score(test, lambda obs: rng.integers(0, 16, args.episodes), args.episodes)
     print(
         f"B = {args.B / 1e3:g} kHz, {args.episodes} test layouts; DQN trained on {args.envs} envs "

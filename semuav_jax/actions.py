@@ -101,18 +101,17 @@ def dwell_accel(action: ArrayLike, state: EnvState, params: EnvParams) -> jax.Ar
 OPTION_TARGETS = 4  # an option serves the 1st or 2nd candidate of the tour (eq. 6.5), or the nearest or 2nd nearest
 TOUR_TARGETS = 2  # targets j < TOUR_TARGETS count along the tour, the others by distance
 OPTION_K = (16.0, 24.0, 32.0, 48.0, 64.0, 96.0)  # symbols: "serve until k" of the options
-OPTION_MARGIN = -2.0  # s: the time margin of eq. 7.9, that of the tuned dwell rules (docs/baselines.md)
 OPTION_HOME = OPTION_TARGETS * len(OPTION_K)  # the last option: fly home
 NUM_OPTIONS = OPTION_HOME + 1
 HOME_CODE = -1  # the command code of the home option
 
 
-def option_fits(state: EnvState, params: EnvParams) -> jax.Array:
+def option_fits(state: EnvState, params: EnvParams, margin: ArrayLike) -> jax.Array:
     """(N,) bool, eq. 7.9: the devices that an option can still serve, i.e. flying to one at
     DWELL_SPEED, stopping there and flying home (eqs. 7.4-7.5) fits in the time left less
-    OPTION_MARGIN."""
+    ``margin`` seconds (negative: a flight that eqs. 7.4-7.5 time up to -margin s too long)."""
     need = jax.vmap(lambda p: time_via(state.q, state.v, p, DWELL_SPEED, params, stop=True))(state.dev_pos)
-    return need + OPTION_MARGIN <= (params.K - state.t) * params.tau
+    return need + margin <= (params.K - state.t) * params.tau
 
 
 def option_code(
@@ -125,7 +124,7 @@ def option_code(
     candidate along the tour for j < TOUR_TARGETS, else the (j - TOUR_TARGETS)-th nearest (the last
     candidate when there are fewer): code n, fixed at the decision whatever the orders become.
     Option 0 followed throughout is TSP-dwell on the re-planned tour with k* = k, option
-    TOUR_TARGETS * len(OPTION_K) greedy-dwell (eq. 7.10), both with margin OPTION_MARGIN.
+    TOUR_TARGETS * len(OPTION_K) greedy-dwell (eq. 7.10), both with the margin of ``fits``.
     OPTION_HOME, or no candidate, is HOME_CODE (k = inf)."""
     L = len(OPTION_K)
     k = jnp.asarray(OPTION_K)[jnp.minimum(choice, OPTION_HOME - 1) % L]

@@ -50,6 +50,8 @@ TRAIN_RUN = {
     "learning_starts": 32,
     "batch_size": 8,
     "segments": 2,
+    "demo_steps": 8,  # the default agent learns from demonstrations: 8 vmapped steps of them
+    "demo_batch": 4,
 }
 
 
@@ -58,8 +60,9 @@ def train_options(**options: object) -> list[str]:
     return [a for k, v in (TRAIN_RUN | options).items() for a in (f"--{k.replace('_', '-')}", str(v))]
 
 
-# the run on synthetic curves without an evaluation
-TRAIN_TINY = ["--curves", "synthetic", *train_options(eval_episodes=0, workers=1)]
+# the run of the waypoint agent (quicker to compile) on synthetic curves without an evaluation: what tests of the
+# command's mechanics (run folder, faults, processes) train
+TRAIN_TINY = ["--preset", "waypoint", "--curves", "synthetic", *train_options(eval_episodes=0, workers=1, demo_steps=0)]
 
 
 def start_interruptible(cmd: list[str]) -> subprocess.Popen:

@@ -35,17 +35,20 @@ def test_load_refuses_other_files(tmp_path):
 
 
 def test_evaluate_is_a_loop_of_act(agent):
-    """evaluate()'s mean PSNR equals a plain Python loop of act + transition over the same episodes."""
+    """evaluate()'s mean PSNR equals a plain Python loop of act + transition over the same episodes
+    (the policy state, an option agent's running option, handed from one act to the next)."""
     params = agent.params.replace(B=20e3)
     keys = episode_keys(11, 3)
-    act = jax.jit(lambda s: agent.act(s, params)[1])
+    act = jax.jit(lambda s, ps: agent.act(s, params, ps)[1:])
+    first = jax.jit(lambda s: agent.act(s, params)[1:])
     step = jax.jit(lambda u, s, a: transition_u(u, s, a, params)[0])
     psnr, arrived = [], []
     for key in keys:
         k_reset, k_steps = jax.random.split(key)
-        state = reset_state(k_reset, params)
+        state, ps = reset_state(k_reset, params), None
         for u in delay_draws(k_steps, params):
-            state = step(u, state, act(state))
+            accel, ps = first(state) if ps is None else act(state, ps)
+            state = step(u, state, accel)
         m = episode_metrics(state, params)
         psnr.append(float(m["mean_psnr"]))
         arrived.append(bool(m["arrived"]))

@@ -126,6 +126,8 @@ def test_switch_demonstrations_hold_the_simulated_options(params):
         ({"demo_expert": "planner"}, "demo_expert must be one of"),
         ({"demo_every": 0}, "demo_every must be an integer >= 1"),
         ({"demo_every": 2.5}, "demo_every must be an integer >= 1"),
+        ({"option_margin": float("nan")}, "option_margin must be a finite number"),
+        ({"option_margin": float("-inf")}, "option_margin must be a finite number"),
     ],
 )
 def test_bad_demonstration_settings_are_one_line_errors(bad, match):

@@ -19,6 +19,7 @@ from semuav_jax.actions import (
 )
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.options import OptionObs, idle, running, step_option
+from semuav_jax.agents.policy import greedy_policy
 from semuav_jax.agents.replay import Transition, replay_add_where, replay_init
 from semuav_jax.agents.smdp import option_transitions, pending_init
 from semuav_jax.control import STOP_BRAKE, home_command, speed_command
@@ -63,18 +64,22 @@ def test_option_codes_by_hand(state, params):
     assert int(option_code(jnp.int32(near), m, fits.at[5].set(False), order, tour, params)[0]) == 0
 
 
-def test_options_serve_only_devices_that_fit(state, params):
+@pytest.mark.parametrize("margin", [-2.0, -4.0, 1.0])
+def test_options_serve_only_devices_that_fit(state, params, margin):
     """Eq. 7.9: a device fits while the stop there and the flight home (eqs. 7.4-7.5 at DWELL_SPEED)
-    take at most the time left plus |OPTION_MARGIN|; every device fits at t = 0."""
-    from semuav_jax.actions import OPTION_MARGIN, option_fits
+    take at most the time left less the margin; every device fits at t = 0."""
+    from semuav_jax.actions import option_fits
     from semuav_jax.control import time_via
 
-    assert bool(jnp.all(option_fits(state, params)))
+    assert bool(jnp.all(option_fits(state, params, margin)))
     need = np.array([float(time_via(state.q, state.v, p, DWELL_SPEED, params, stop=True)) for p in state.dev_pos])
-    slots = int(np.ceil((np.median(need) + OPTION_MARGIN) / params.tau))  # about half of them fit
+    slots = int(np.ceil((np.median(need) + margin) / params.tau))  # about half of them fit
     late = state.replace(t=jnp.int32(params.K - slots))
-    np.testing.assert_array_equal(np.asarray(option_fits(late, params)), need + OPTION_MARGIN <= slots * params.tau)
-    assert 0 < int(np.sum(np.asarray(option_fits(late, params)))) < 10
+    fits = np.asarray(option_fits(late, params, margin))
+    np.testing.assert_array_equal(fits, need + margin <= slots * params.tau)
+    assert 0 < int(np.sum(fits)) < 10
+    observe = greedy_policy(None, DDQNConfig(actions="option", option_margin=margin)).observe
+    np.testing.assert_array_equal(np.asarray(observe(late, params).fits), fits)
 
 
 def test_constant_options_are_the_dwell_rules(params):
@@ -206,7 +211,7 @@ def test_option_inputs_by_hand(state, params):
     from semuav_jax.agents.features import option_features, waypoint_features
     from semuav_jax.control import time_via
 
-    x = np.asarray(jax.jit(option_features)(state, params))
+    x = np.asarray(jax.jit(lambda s, p: option_features(s, p, -2.0))(state, params))
     base = np.asarray(waypoint_features(state, params))
     np.testing.assert_allclose(x[: base.size], base, rtol=1e-5, atol=1e-6)  # jit rounds differently
     block = x[base.size :].reshape(OPTION_HOME, 4)
@@ -222,7 +227,7 @@ def test_option_inputs_by_hand(state, params):
         np.testing.assert_allclose(stay, k / rate / T, rtol=1e-5)
         np.testing.assert_allclose(slack, (params.K * params.tau - via - k / rate) / T, rtol=1e-5, atol=1e-6)
     done = state.replace(m=jnp.full(10, float(params.M)))
-    assert not np.any(np.asarray(option_features(done, params))[base.size :])
+    assert not np.any(np.asarray(option_features(done, params, -2.0))[base.size :])
 
 
 def test_option_inputs_need_options():

@@ -5,9 +5,9 @@ import jax
 import numpy as np
 import pytest
 
-from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.evaluate import evaluate_agent, seed_metrics
 from semuav_jax.agents.network import q_network
+from semuav_jax.agents.run_config import RunConfig
 from semuav_jax.agents.runs import EVAL_FILE, load_run, shipped_folder
 from semuav_jax.curves import load_curves
 from semuav_jax.keys import TEST_SEED, episode_keys
@@ -18,7 +18,8 @@ def test_shipped_agent_is_the_default_command():
     import json
 
     run, nets = load_run(shipped_folder())
-    assert run.command == "python train.py" and run.agent == DDQNConfig() and run.env["r_g"] == 0.0
+    assert run.command == "python train.py" and run.agent == RunConfig.from_preset("default").agent
+    assert run.env == RunConfig.from_preset("default").env and run.env["r_g"] == 0.0
     assert run.curves is None and np.asarray(nets["params"]["Dense_0"]["kernel"]).shape[0] == run.seeds == 3
     ev = json.loads((shipped_folder() / EVAL_FILE).read_text())
     assert ev["curves_sha256"] == curves_hash(load_curves().C) and ev["test_seed"] == TEST_SEED

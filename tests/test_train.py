@@ -66,7 +66,7 @@ def test_options_come_from_the_config_and_the_preset(tmp_path, curves_file):
         "16",
         "--shield-margin",
         "none",
-        *NO_EVAL,
+        *train_options(eval_episodes=0, demo_steps=0),
     )
     assert res.returncode == 0, res.stderr
     cfg = json.loads((out / "config.json").read_text())

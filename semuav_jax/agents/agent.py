@@ -101,15 +101,18 @@ class Agent:
         params = self.params if params is None else params
         return self.network.apply(self.weights, agent_input(state, params, self.config))
 
-    def act(self, state: EnvState, params: EnvParams | None = None) -> tuple[jax.Array, jax.Array]:
-        """The BS's command for one ``EnvState``: (action after the shield, acceleration (2,)) for
-        ``semuav_jax.env.transition`` (jittable; greedy, epsilon = 0). An option agent (eq. 6.4)
-        decides afresh: the option's command code and its first acceleration."""
+    def act(
+        self, state: EnvState, params: EnvParams | None = None, policy_state: Any = None
+    ) -> tuple[jax.Array, jax.Array, Any]:
+        """The BS's command for one ``EnvState``: (action after the shield, acceleration (2,) for
+        ``semuav_jax.env.transition``, policy state) (jittable; greedy, epsilon = 0). An option agent
+        (eq. 6.4) goes on with the option running in ``policy_state`` (the third item of the last
+        call); None starts afresh, as at an episode's start. The action is then the command code."""
         params = self.params if params is None else params
         policy = greedy_policy(self.network, self.config)
-        ps = initial_state(self.weights, self.config)
-        sent, _, accel, _ = command(policy, ps, policy.observe(state, params), state, params)
-        return sent, accel
+        ps = initial_state(self.weights, self.config) if policy_state is None else policy_state
+        sent, _, accel, ps = command(policy, ps, policy.observe(state, params), state, params)
+        return sent, accel, ps
 
 
 def evaluate(agent: Agent, params: EnvParams | None = None, episodes: int = 1000, seed: int = TEST_SEED) -> dict:

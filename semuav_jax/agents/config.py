@@ -59,6 +59,11 @@ class DDQNConfig:
         "options: add to the input, for every option, the PSNR its device's curve adds, the seconds its stay "
         'takes and the time slack it leaves (docs/ddqn.md, "Input")',
     )
+    option_margin: float = option(
+        -2.0,
+        "options: seconds of time margin of eq. 7.9, the devices an option may serve (that of the tuned dwell rules: "
+        "-2; negative: trusts the flight time of eqs. 7.4-7.5 to be that much too long)",
+    )
     demo_steps: int = option(
         0,
         "vmapped env steps the expert option (the first along the tour, k by bandwidth: demo_k, demo_edges) flies "
@@ -145,6 +150,8 @@ class DDQNConfig:
             raise ValueError(f"hidden must be one or more positive layer widths, got {self.hidden}")
         if not 0.0 < self.lr_end <= 1.0:
             raise ValueError(f"lr_end must be in (0, 1], got {self.lr_end}")
+        if isinstance(self.option_margin, bool) or not abs(self.option_margin) < float("inf"):
+            raise ValueError(f"option_margin must be a finite number of seconds, got {self.option_margin!r}")
         for name in ("lr", "reward_scale", "max_grad_norm", "demo_weight", "demo_margin"):
             if not 0 < getattr(self, name) < float("inf"):  # NaN fails too
                 raise ValueError(f"{name} must be finite and > 0, got {getattr(self, name)}")

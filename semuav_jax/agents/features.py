@@ -98,13 +98,14 @@ def waypoint_features(state: EnvState, params: EnvParams) -> jax.Array:
     return jnp.concatenate([glob, dev.reshape(-1)]).astype(jnp.float32)
 
 
-def option_features(state: EnvState, params: EnvParams) -> jax.Array:
+def option_features(state: EnvState, params: EnvParams, margin: float) -> jax.Array:
     """:func:`waypoint_features`, then for each option c < OPTION_HOME (eq. 6.4) of the device n it
     would serve: the PSNR it adds, C[i_n, k] - phi_n (by the range of C; the curve is what the BS
     knows of the device's image), the seconds its stay takes at the hover rate, (k - m_n)+ beta / R(0),
     and the slack it leaves, time left - flight via n home (eqs. 7.4-7.5) - that stay, both / T,
-    and whether it has a device. Zeros for an option without one."""
-    fits = option_fits(state, params)
+    and whether it has a device, for the options of time margin ``margin`` s (eq. 7.9). Zeros for an
+    option without a device."""
+    fits = option_fits(state, params, margin)
     tour = tour_order(state.q, state.dev_pos, fits & (state.m < OPTION_K[0] - 1e-3), params.q_fin)
     order = device_order(state, params)
     codes, ks = jax.vmap(lambda c: option_code(c, state.m, fits, order, tour, params))(jnp.arange(OPTION_HOME))

@@ -65,11 +65,12 @@ def idle_batch(shape: tuple[int, ...]) -> Option:
     return jax.tree.map(lambda x: jnp.broadcast_to(x, shape + x.shape), idle())
 
 
-def option_observe(features: Callable) -> Callable:
-    """``(state, params) -> OptionObs`` around the input ``features(state, params)``."""
+def option_observe(features: Callable, margin: float) -> Callable:
+    """``(state, params) -> OptionObs`` around the input ``features(state, params)``, the devices that
+    fit with the time margin ``margin`` s (eq. 7.9)."""
 
     def observe(state: EnvState, params: EnvParams) -> OptionObs:
-        fits, order = option_fits(state, params), device_order(state, params)
+        fits, order = option_fits(state, params, margin), device_order(state, params)
         return OptionObs(features(state, params), state.m, fits, order, state.q, state.dev_pos)
 
     return observe

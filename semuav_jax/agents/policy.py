@@ -30,7 +30,7 @@ if TYPE_CHECKING:
 def agent_input(state: EnvState, params: EnvParams, config: DDQNConfig) -> jax.Array:
     """The Q-network's input for one ``EnvState`` (``agents/features.py``)."""
     if config.option_inputs:
-        return option_features(state, params)
+        return option_features(state, params, config.option_margin)
     if config.actions != "table":  # waypoint, dwell and option actions (eqs. 6.2-6.4)
         return waypoint_features(state, params)
     obs = observation(state, params)
@@ -56,7 +56,7 @@ def agent_shield(config: DDQNConfig) -> Callable:
 @functools.cache
 def _observe(config: DDQNConfig) -> Callable:
     features = lambda state, params: agent_input(state, params, config)
-    return option_observe(features) if config.uses_options else features
+    return option_observe(features, config.option_margin) if config.uses_options else features
 
 
 def initial_state(inner: Any, config: DDQNConfig) -> Any:

@@ -27,10 +27,19 @@ if TYPE_CHECKING:
 FORMAT = "semuav-jax run 2"
 SEED_RANGE = 2**32  # jax.random.PRNGKey aliases seeds modulo 2**32
 
+# one agent for every B: the 'gain' reward (docs/ddqn.md) and no arrival bonus (the shield guarantees arrival,
+# and a discounted bonus only pays for arriving early)
+ONE_AGENT_ENV = {"reward_mode": "gain", "B": 25e3, "r_g": 0.0}
 PRESETS = {
-    # one agent for every B: the 'gain' reward (docs/ddqn.md) and no arrival bonus (the shield guarantees arrival,
-    # and a discounted bonus only pays for arriving early)
-    "default": {"env": {"reward_mode": "gain", "B": 25e3, "r_g": 0.0}, "agent": {}},
+    # options (eq. 6.4) with their inputs, the constant expert's demonstrations, the shield at 0 s and the
+    # option margin of eq. 7.9 at -4 s (docs/ddqn.md, "Levers")
+    "default": {
+        "env": ONE_AGENT_ENV,
+        "agent": {"actions": "option", "gamma": 0.995, "demo_steps": 2500, "shield_margin": 0.0,
+                  "option_inputs": True, "option_margin": -4.0},
+    },
+    # the default env with the waypoint agent (eq. 6.2): one decision per slot
+    "waypoint": {"env": ONE_AGENT_ENV, "agent": {}},
     # the paper's configuration (MODEL.md section 6, PAPER_CLAIMS.md): paper reward with the shield, lr 5e-5,
     # MLP 128-128-64, the 9 accelerations, the raw observation, 1-step targets, trained at one bandwidth
     "paper": {
@@ -48,7 +57,7 @@ NOT_ENV = ("C", "device_pos", "device_img", "layout")
 class RunConfig:
     """What a training run is; :meth:`to_dict` is config.json. Run options carry their CLI help."""
 
-    agent: DDQNConfig = dataclasses.field(default_factory=DDQNConfig)
+    agent: DDQNConfig = dataclasses.field(default_factory=lambda: DDQNConfig(**PRESETS["default"]["agent"]))
     env: dict = dataclasses.field(default_factory=lambda: dict(PRESETS["default"]["env"]))
     scenario: str = option("random", "fixed: the paper layout; random: a new layout per episode", choices=SCENARIOS)
     curves: str | None = option(None, "PSNR curves .npz, or 'synthetic' (none: the shipped DeepJSCC curves)", type=str)

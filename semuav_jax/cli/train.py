@@ -85,7 +85,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         "--preset",
         choices=sorted(PRESETS),
         default=None,
-        help="default: waypoint actions, one agent for every B; paper: the paper's configuration",
+        help="default: options (eq. 6.4) with demonstrations, one agent for every B; waypoint: the same with waypoint "
+        "actions (eq. 6.2); paper: the paper's configuration",
     )
     env = PRESETS["default"]["env"]
     for name, (key, kind, text) in ENV_OPTIONS.items():
@@ -99,7 +100,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         metavar="KEY=VALUE",
         help="any other make_params override of the run's env, e.g. --env K=300 (repeatable)",
     )
-    for cls, instance in ((DDQNConfig, DDQNConfig()), (RunConfig, RunConfig())):
+    for cls, instance in ((DDQNConfig, RunConfig().agent), (RunConfig, RunConfig())):
         for f in dataclasses.fields(cls):
             if "help" not in f.metadata:
                 continue
