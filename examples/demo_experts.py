@@ -1,8 +1,9 @@
 """The demonstration experts of an option agent (agents/demos.py, docs/ddqn.md "Demonstrations")
 flown on the first validation layouts at 5 / 20 / 25 / 40 kHz, beside TSP-dwell at its tuned knobs
-(the default run's cached references): the constant option (k by bandwidth) through the BS's
-shield at each of ``--shield-margins``, and with ``--switch`` the switch expert (eq. 7.15 over the
-constant options, every 32 slots; about 3 min per bandwidth for 200 layouts).
+(the default run's cached references): the constant option (k by bandwidth, the option margin of
+eq. 7.9 at ``--option-margin``) through the BS's shield at each of ``--shield-margins``, and with
+``--switch`` the switch expert (eq. 7.15 over the constant options, every 32 slots; about 3 min per
+bandwidth for 200 layouts).
 
     python examples/demo_experts.py --shield-margins 2 0 --switch
 """
@@ -28,9 +29,11 @@ ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 ap.add_argument("--episodes", type=int, default=200, help="first validation layouts (default: %(default)s)")
 ap.add_argument("--shield-margins", type=float, nargs="+", default=[2.0, 0.0], help="seconds (default: 2 0)")
 ap.add_argument("--switch", action="store_true", help="also the switch expert")
+ap.add_argument("--option-margin", type=float, default=None, help="s, eq. 7.9 (default: the default run's, -4)")
 args = ap.parse_args()
 
-run = RunConfig.from_preset("default", agent={"actions": "option", "demo_expert": "switch"})
+agent = {"demo_expert": "switch"} | ({} if args.option_margin is None else {"option_margin": args.option_margin})
+run = RunConfig.from_preset("default", agent=agent)
 base = run.env_params()
 tuned = references(base, BANDWIDTHS, run.eval_episodes, run.validation_episodes)["tuning"]
 keys = episode_keys(VALIDATION_SEED, args.episodes)
