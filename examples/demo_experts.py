@@ -29,11 +29,15 @@ ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 ap.add_argument("--episodes", type=int, default=200, help="first validation layouts (default: %(default)s)")
 ap.add_argument("--shield-margins", type=float, nargs="+", default=[2.0, 0.0], help="seconds (default: 2 0)")
 ap.add_argument("--switch", action="store_true", help="also the switch expert")
-ap.add_argument("--option-margin", type=float, default=None, help="s, eq. 7.9 (default: the default run's, -4)")
+ap.add_argument(
+    "--option-margin",
+    type=float,
+    default=RunConfig().agent.option_margin,
+    help="s, eq. 7.9 (default: the default run's, %(default)s)",
+)
 args = ap.parse_args()
 
-agent = {"demo_expert": "switch"} | ({} if args.option_margin is None else {"option_margin": args.option_margin})
-run = RunConfig.from_preset("default", agent=agent)
+run = RunConfig.from_preset("default", agent={"demo_expert": "switch", "option_margin": args.option_margin})
 base = run.env_params()
 tuned = references(base, BANDWIDTHS, run.eval_episodes, run.validation_episodes)["tuning"]
 keys = episode_keys(VALIDATION_SEED, args.episodes)
