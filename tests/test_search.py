@@ -142,6 +142,9 @@ def test_the_search_table_names_the_layouts_it_used():
     assert len(row["seeds"]) == r["seeds"] == 3
     for s in row["seeds"]:
         np.testing.assert_allclose(s["minus agent"][0], s["mean_psnr"][0] - s["agent"][0], atol=1e-4)
+        # bound - agent = (bound - search) + (search - agent), layout by layout, so in the mean too
+        np.testing.assert_allclose(s["agent bound gap"][0], s["bound gap"][0] + s["minus agent"][0], atol=1e-4)
+    assert "| bound − search | bound − agent |" in markdown(r)
 
 
 def test_option_search_with_top_simulates_the_agents_best_options(curves):

@@ -5,6 +5,7 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 from conftest import ROOT, train_options
 
@@ -47,6 +48,9 @@ def test_outputs(run_dir):
     for row in ev["rows"]:
         assert len(row["seeds"]) == 2 and {"greedy v_b*", "tsp v_b*", "planner"} <= set(row["references"])
         assert "minus greedy v_b*" in row["agent"] and 0.0 <= row["agent"]["shield_share"] <= 1.0
+        for s in row["seeds"]:  # paired per layout, so the mean margin is the difference of the means
+            ref = row["references"]["greedy 8.9"]["mean_psnr"]
+            np.testing.assert_allclose(s["minus greedy 8.9"][0], s["mean_psnr"] - ref, atol=1e-4)
     assert len(ev["commit"]) >= 40 and len(ev["curves_sha256"]) == 64
 
 

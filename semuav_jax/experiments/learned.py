@@ -1,8 +1,9 @@
 """The learned controller against the strongest references (docs/ddqn.md, "Results").
 
 Every training seed is evaluated greedily on the same test layouts (``keys.TEST_SEED``) as greedy
-and TSP at the paper's 8.9 m/s and at their tuned speed v_b* (chosen on ``keys.VALIDATION_SEED``
-layouts, ``baselines.report.tune``) and the offline planner, at each bandwidth. Margins are
+and TSP at the paper's 8.9 m/s and at their tuned speed v_b*, the dwell rules at their tuned knobs
+(chosen on ``keys.VALIDATION_SEED`` layouts, ``baselines.report.tune``), dwell-switch, the planners
+and plan-switch, at each bandwidth. Margins are
 per-episode paired differences; the statistic across seeds is the mean of the seeds' means with
 its t interval. No seed is selected: every one is reported.
 """
@@ -10,8 +11,10 @@ its t interval. No seed is selected: every one is reported.
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -38,6 +41,8 @@ REFERENCES = (
     "tsp-dwell",
 )  # the fixed rules, tuned: margins that must be positive
 MARGINS = (
+    "greedy 8.9",
+    "tsp 8.9",
     *REFERENCES,
     "dwell-switch",
     "planner",
@@ -194,8 +199,6 @@ def _evaluate_run(
     log: Callable[[str], None],
     extra: dict | None,
 ) -> dict:
-    import json
-
     from semuav_jax.agents.runs import EVAL_FILE, EVAL_MD, load_run
     from semuav_jax.provenance import provenance
 
@@ -207,11 +210,19 @@ def _evaluate_run(
     pick = lambda given, saved: saved if given is None else given
     counts = pick(episodes, run.eval_episodes), pick(validation_episodes, run.validation_episodes)
     r = compare(network, nets, config, params, bandwidths, *counts, pick(workers, run.workers), log=log)
-    r.update(agent_command=run.command, **(extra or {}), **provenance(params))
+    r.update(agent_command=run.command, **_training_time(folder / EVAL_FILE), **(extra or {}), **provenance(params))
     if is_main():  # of several processes, process 0 writes
         run_folder.write(EVAL_FILE, json.dumps(r, indent=2).encode())
         run_folder.write(EVAL_MD, (markdown(r) + "\n").encode())
     return r
+
+
+def _training_time(recorded: Path) -> dict:
+    """``train_wall_s`` of the evaluation ``recorded`` (train.py's), kept when a run is evaluated again."""
+    try:
+        return {k: v for k, v in json.loads(recorded.read_text()).items() if k == "train_wall_s"}
+    except (OSError, ValueError, AttributeError):
+        return {}
 
 
 def validation_table(

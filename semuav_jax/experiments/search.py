@@ -110,6 +110,7 @@ def compare_search(
                 "wall_s": time.perf_counter() - t0,
                 **{f"minus {n}": mean_ci(m["mean_psnr"] - base[n]) for n in VERSUS},
                 "bound gap": mean_ci(bound - m["mean_psnr"]),
+                "agent bound gap": mean_ci(bound - own["mean_psnr"]),
             }
             row["seeds"].append(res)
             log(
@@ -120,7 +121,7 @@ def compare_search(
         row["search"] = (
             {k: mean_ci([x[k][0] for x in row["seeds"]]) for k in ("mean_psnr", "agent")}
             | {f"minus {n}": mean_ci([x[f"minus {n}"][0] for x in row["seeds"]]) for n in VERSUS}
-            | {"bound gap": mean_ci([x["bound gap"][0] for x in row["seeds"]])}
+            | {g: mean_ci([x[g][0] for x in row["seeds"]]) for g in ("bound gap", "agent bound gap")}
         )
         rows.append(row)
     return {
@@ -155,15 +156,16 @@ def _cached_flights(params: EnvParams, saved: dict, episodes: int) -> dict[float
 
 def markdown(r: dict) -> str:
     head = " | ".join(f"search − {n}" for n in VERSUS)
-    cells = lambda s: [f"{s[c][0]:+.2f} {pm(s[c][1])}" for c in (*(f"minus {n}" for n in VERSUS), "bound gap")]
+    gaps = (*(f"minus {n}" for n in VERSUS), "bound gap", "agent bound gap")
+    cells = lambda s: [f"{s[c][0]:+.2f} {pm(s[c][1])}" for c in gaps]
     knobs = f"a decision every {r['every']} slots" + (f", {r['targets']} target devices" if r["targets"] else "")
     knobs += f", the agent's {r['top']} best options by Q" if r.get("top") else ""
     lines = [
         f"First {r['episodes']} {r['layouts']} layouts (seed {r['layout_seed']}); {knobs}; {r['seeds']} seeds, "
         "each paired per layout; across seeds: mean of the seeds' means ± t interval.",
         "",
-        f"| B (kHz) | seed | agent with search (dB) | agent (dB) | {head} | bound − search | s |",
-        "|---" * (6 + len(VERSUS)) + "|",
+        f"| B (kHz) | seed | agent with search (dB) | agent (dB) | {head} | bound − search | bound − agent | s |",
+        "|---" * (7 + len(VERSUS)) + "|",
     ]
     for row in r["rows"]:
         for i, s in enumerate(row["seeds"]):
