@@ -26,6 +26,24 @@ def test_shipped_agent_is_the_default_command():
     assert len(ev["commit"].split("+")[0]) == 40
 
 
+def test_a_reevaluation_keeps_the_recorded_training_time(tmp_path):
+    """``semuav-compare`` on a run folder keeps the ``train_wall_s`` of the eval.json it replaces
+    (train.py's), and nothing else of it; a missing or broken file gives nothing."""
+    import json
+
+    from semuav_jax.experiments.learned import _training_time
+
+    shipped = _training_time(shipped_folder() / EVAL_FILE)
+    assert list(shipped) == ["train_wall_s"] and shipped["train_wall_s"] > 60.0
+    f = tmp_path / "eval.json"
+    f.write_text(json.dumps({"train_wall_s": 12.5, "rows": [], "commit": "x"}))
+    assert _training_time(f) == {"train_wall_s": 12.5}
+    assert _training_time(tmp_path / "missing.json") == {}
+    for broken in ("{broken", "[1, 2]"):
+        f.write_text(broken)
+        assert _training_time(f) == {}
+
+
 @pytest.mark.slow
 def test_recorded_evaluation_reproduces():
     """Every seed's mean PSNR at 25 kHz on the recorded test layouts, within its recorded 95 % CI."""
