@@ -1,10 +1,10 @@
 """Milliseconds per decision at the BS (docs/model.md eq. 7.15): one ``lookahead.choose`` (every
 candidate simulated to the end of the mission) for one UAV, as the BS computes it within the
 processing delay (Delta_proc <= 0.1 s), for dwell-switch (12 candidates) and the agent with search
-(the shipped agent and its 16 actions, or the agent of ``--run``, with the search knobs of
-``semuav-search``). States: the first slot of ``--states`` test layouts at B = 25 kHz.
+(the shipped agent, or the agent of ``--run``, with the search knobs of ``semuav-search``).
+States: the first slot of ``--states`` test layouts at B = 25 kHz.
 
-    taskset -c 0 python benchmarks/decision.py [--states 50] [--run FOLDER --every 16 --top 3]
+    taskset -c 0 python benchmarks/decision.py [--states 50] [--run FOLDER --every 16 --top 3 --no-rules]
 
 Prints median and 99th percentile (ms) and writes ``benchmarks/decision.json``. Target: <= 100 ms
 per decision on one core. Also the wall time of evaluating 100 layouts in one vmapped program.
@@ -22,7 +22,7 @@ import numpy as np
 from baselines.dwell_switch import dwell_switch_metrics, knob_table, switching
 from baselines.evaluate import tsp_ranks
 from semuav_jax.agents.runs import load_run
-from semuav_jax.agents.search import SEARCH_EVERY, SEARCH_TARGETS, agent_switching, search_metrics
+from semuav_jax.agents.search import SEARCH_EVERY, SEARCH_RULES, SEARCH_TARGETS, agent_switching, search_metrics
 from semuav_jax.env import reset_state
 from semuav_jax.io import atomic_write
 from semuav_jax.keys import TEST_SEED, episode_keys
@@ -35,6 +35,7 @@ ap.add_argument("--run", default=str(Path(__file__).resolve().parents[1] / "semu
 ap.add_argument("--every", type=int, default=SEARCH_EVERY, help="slots between two decisions of the agent")
 ap.add_argument("--targets", type=int, default=SEARCH_TARGETS, help="option agents: candidate devices")
 ap.add_argument("--top", type=int, default=None, help="option agents: simulate the M best options by Q")
+ap.add_argument("--no-rules", action="store_true", help="option agents: no constant options among the candidates")
 ap.add_argument("--out", default=str(Path(__file__).with_suffix(".json")))
 args = ap.parse_args()
 
@@ -43,7 +44,8 @@ params = run.env_params().replace(B=25e3)
 net = jax.tree.map(lambda x: jnp.asarray(x[0]), nets)
 keys = episode_keys(TEST_SEED, max(args.states + 1, args.layouts))  # state 0 only compiles
 rank = np.asarray(tsp_ranks(keys, params, workers=1))
-knobs = (args.every, 1, args.targets, args.top)
+rules = () if args.no_rules or not run.agent.uses_options else SEARCH_RULES
+knobs = (args.every, 1, args.targets, args.top, rules)
 cases = {
     "dwell-switch": (check_switching(switching()), knob_table(25.0, 0.0), lambda i: jnp.asarray(rank[i])),
     "agent with search": (
@@ -65,7 +67,7 @@ for name, (sw, shared, per) in cases.items():
     rows.append(
         {
             "policy": name,
-            "candidates": sw.count if sw.shortlist is None else args.top + 1,  # simulated per decision
+            "candidates": sw.count if sw.shortlist is None else args.top + 1 + len(rules),  # simulated per decision
             "median_ms": float(np.median(ms)),
             "p99_ms": float(np.percentile(ms, 99)),
         }
@@ -87,5 +89,5 @@ print(f"| policy | candidates | ms per decision, median | 99th percentile | {arg
 print("|---|---|---|---|---|")
 for r in rows:
     print(f"| {r['policy']} | {r['candidates']} | {r['median_ms']:.1f} | {r['p99_ms']:.1f} | {r['episodes_s']:.1f} |")
-meta = {"run": args.run, "every": args.every, "targets": args.targets, "top": args.top}
+meta = {"run": args.run, "every": args.every, "targets": args.targets, "top": args.top, "rules": len(rules)}
 atomic_write(args.out, json.dumps({"devices": jax.device_count(), **meta, "rows": rows}, indent=1).encode())

@@ -9,7 +9,8 @@ The candidates are ``candidate(shared, per_episode, c, now)`` for c = 0 .. C-1: 
 network weights) is the same for every episode, ``per_episode`` (e.g. a TSP order) has an episode
 axis, ``now`` is the policy state at the decision (None at t = 0; a candidate may go on from it).
 Episodes are those of ``rollout`` for the same keys (layouts and delays), so results pair with
-every other policy's.
+every other policy's. A :class:`Light` simulates the last candidates with a cheaper policy that
+flies them alike (same decisions, less work per simulated slot).
 """
 
 from __future__ import annotations
@@ -34,6 +35,17 @@ SLACK_S = 2.0  # s: the simulated delays are not the flight's, so a plan that ar
 LOOKAHEAD_STREAM = 0x5E4C  # fold_in tag of the lookahead's own delay draws (never the episode's)
 
 
+class Light(NamedTuple):
+    """The last ``count`` candidates a decision simulates, flown by ``policy`` from
+    ``candidate(shared, per_episode, c, now, state, params)`` (``state``: the env state at the
+    decision): exactly as the Switching's own policy flies them, only cheaper (e.g. a constant
+    option needs no network, and a tour planned once at the decision)."""
+
+    policy: Policy
+    candidate: Callable
+    count: int
+
+
 class Switching(NamedTuple):
     """Decisions by simulation over the candidates of ``policy`` (hashable: a static argument of jit)."""
 
@@ -43,6 +55,7 @@ class Switching(NamedTuple):
     every: int  # slots between two decisions
     samples: int = 1  # delay draws each candidate is simulated with (the same for every candidate)
     shortlist: Callable | None = None  # (shared, per_episode, state, now, params) -> candidates to simulate; None: all
+    light: Light | None = None  # how the last candidates simulated are simulated cheaper; None: all by ``policy``
 
 
 def decision_key(key: jax.Array, i: ArrayLike) -> jax.Array:
@@ -54,6 +67,10 @@ def check_switching(sw: Switching) -> Switching:
     for name, x in (("count", sw.count), ("every", sw.every), ("samples", sw.samples)):
         if not isinstance(x, int) or isinstance(x, bool) or x < 1:
             raise ValueError(f"{name} must be an integer >= 1, got {x!r}")
+    if sw.light is not None:
+        if not isinstance(sw.light.count, int) or not 1 <= sw.light.count < sw.count:
+            raise ValueError(f"light.count must be an integer in [1, {sw.count}), got {sw.light.count!r}")
+        sw = sw._replace(light=sw.light._replace(policy=as_policy(sw.light.policy)))
     return sw._replace(policy=as_policy(sw.policy))
 
 
@@ -77,14 +94,22 @@ def choose(
     simulated to the end with the same ``samples`` delay draws."""
     keys = jax.random.split(key, sw.samples)
 
-    def value(c: jax.Array) -> jax.Array:
-        ps = sw.candidate(shared, per_episode, c, now)
-        runs = jax.vmap(lambda k: episode(sw.policy, k, params, ps, init_state=state)[0])(keys)
-        return jnp.mean(score(runs, params))
+    def values(policy: Policy, candidate: Callable, ids: jax.Array) -> jax.Array:
+        def value(c: jax.Array) -> jax.Array:
+            ps = candidate(shared, per_episode, c, now)
+            runs = jax.vmap(lambda k: episode(policy, k, params, ps, init_state=state)[0])(keys)
+            return jnp.mean(score(runs, params))
+
+        return jax.vmap(value)(ids)
 
     ids = jnp.arange(sw.count) if sw.shortlist is None else sw.shortlist(shared, per_episode, state, now, params)
-    values = jax.vmap(value)(ids)
-    return ids[jnp.argmax(values)], values
+    if sw.light is None:
+        v = values(sw.policy, sw.candidate, ids)
+    else:
+        n = ids.shape[0] - sw.light.count
+        light = lambda sh, pe, c, now: sw.light.candidate(sh, pe, c, now, state, params)  # noqa: E731
+        v = jnp.concatenate([values(sw.policy, sw.candidate, ids[:n]), values(sw.light.policy, light, ids[n:])])
+    return ids[jnp.argmax(v)], v
 
 
 def switching_episode(

@@ -117,13 +117,13 @@ def test_option_search_goes_on_with_the_agent_or_starts_an_option(curves):
         np.testing.assert_allclose(np.asarray(m[k]), ref[k], rtol=1e-6, err_msg=k)
     sw = option_switching(network, cfg, 8, 1, 2)  # continue, 2 x 6 options, home
     assert sw.count == 14
-    now = (net, idle().replace(code=jnp.int32(4), active=jnp.bool_(True)))
+    now = ((net, jnp.int32(-1), jnp.zeros(0, jnp.int32)), idle().replace(code=jnp.int32(4), active=jnp.bool_(True)))
     keep, third, home = (sw.candidate(net, None, jnp.int32(c), now)[1] for c in (0, 3, 13))
     assert (int(keep.forced), int(keep.code)) == (-1, 4)
     assert (int(third.forced), int(third.code)) == (2, 4)
     assert int(home.forced) == OPTION_HOME
-    m, chosen, _ = search_metrics(net, cfg, keys, params, every=8)
-    assert np.asarray(chosen).shape == (4, 8) and np.asarray(chosen).max() <= 25
+    m, chosen, _ = search_metrics(net, cfg, keys, params, every=8)  # 4 targets x 6 options, home, 12 rules
+    assert np.asarray(chosen).shape == (4, 8) and np.asarray(chosen).max() <= 37
     assert np.all(np.isfinite(np.asarray(m["mean_psnr"])))
 
 
@@ -138,6 +138,7 @@ def test_the_search_table_names_the_layouts_it_used():
                        log=lambda _: None)  # fmt: skip
     assert r["layout_seed"] == VALIDATION_SEED and r["layouts"] == "validation"
     assert f"First 2 validation layouts (seed {VALIDATION_SEED})" in markdown(r)
+    assert r["rules"] == 12 and "4 target devices, 12 constant options;" in markdown(r)
     (row,) = r["rows"]
     assert len(row["seeds"]) == r["seeds"] == 3
     for s in row["seeds"]:
@@ -170,3 +171,50 @@ def test_option_search_with_top_simulates_the_agents_best_options(curves):
     np.testing.assert_allclose(np.asarray(every_one["mean_psnr"]), np.asarray(full["mean_psnr"]), rtol=1e-6)
     with pytest.raises(ValueError, match=r"top must be in \[1, 13\]"):
         option_switching(network, cfg, 8, 1, 2, 14)
+
+
+def test_option_search_switches_to_constant_options_and_keeps_them(curves):
+    """``rules``: candidate targets L + 2 + i starts the constant option rules[i] now, along a tour
+    planned at its first slot, and chooses it at every later decision (going on, c = 0, keeps rule
+    and tour); an agent's candidate (c >= 1) drops it. A rule on the nearest device (no tour) flies
+    as the constant option does (eq. 6.4), and the light policy simulates every rule to the values
+    the agent's own policy gives."""
+    from semuav_jax.agents.options import idle
+    from semuav_jax.agents.policy import choice_policy
+    from semuav_jax.agents.search import option_switching
+    from semuav_jax.env import reset_state
+    from semuav_jax.lookahead import check_switching, choose
+    from semuav_jax.rollout import rollout
+
+    cfg = DDQNConfig(hidden=(16,), actions="option", shield_margin=2.0)
+    params = make_params(curves, B=25e3, K=60)
+    network = q_network(params, cfg)
+    net = network.init(jax.random.key(1), jnp.zeros((input_size(params, cfg),)))
+    sw = option_switching(network, cfg, 8, 1, 2, None, (3, 15), params.N)  # go on, 2 x 6 options, home, 2 rules
+    assert sw.count == 16
+    unplanned, tour = jnp.full(params.N, -1, jnp.int32), jnp.arange(params.N, dtype=jnp.int32)
+    now = ((net, jnp.int32(-1), unplanned), idle().replace(code=jnp.int32(4), active=jnp.bool_(True)))
+    (_, rule, t), opt = sw.candidate(net, None, jnp.int32(15), now)
+    assert (int(rule), int(opt.forced), int(t.max())) == (15, 15, -1)
+    (_, rule, t), opt = sw.candidate(net, None, jnp.int32(0), ((net, rule, tour), opt.replace(forced=jnp.int32(-1))))
+    assert (int(rule), int(opt.forced)) == (15, -1) and np.array_equal(np.asarray(t), np.asarray(tour))
+    (_, rule, t), opt = sw.candidate(net, None, jnp.int32(2), ((net, rule, tour), opt))
+    assert (int(rule), int(opt.forced), int(t.max())) == (-1, 1, -1)
+    keys = jax.random.split(jax.random.PRNGKey(4), 4)
+    m = rollout(sw.policy, keys, params, ((net, jnp.int32(15), unplanned), idle()), state_axes=None)[0]
+    ref = rollout(choice_policy(lambda o, x, p: o, cfg), keys, params, (jnp.int32(15), idle()), state_axes=None)[0]
+    for k in ("mean_psnr", "arrived", "mission_time"):
+        np.testing.assert_array_equal(np.asarray(m[k]), np.asarray(ref[k]), err_msg=k)
+    state = reset_state(jax.random.key(7), params)
+    for s in (sw, option_switching(network, cfg, 8, 1, 2, 3, (3, 15), params.N)):
+        now = ((net, jnp.int32(-1), unplanned), idle())
+        light = choose(check_switching(s), state, net, None, jax.random.key(3), params, now)[1]
+        heavy = choose(check_switching(s._replace(light=None)), state, net, None, jax.random.key(3), params, now)[1]
+        assert light.shape == ((16,) if s.shortlist is None else (6,))
+        np.testing.assert_array_equal(np.asarray(light), np.asarray(heavy))
+    with pytest.raises(ValueError, match=r"rules must be options in \[0, 24\), got \[24\]"):
+        option_switching(network, cfg, 8, 1, 2, None, (24,), params.N)
+    with pytest.raises(ValueError, match=r"devices must be the env's N >= 1 with rules, got 0"):
+        option_switching(network, cfg, 8, 1, 2, None, (3,))
+    with pytest.raises(ValueError, match=r"light.count must be an integer in \[1, 16\), got 16"):
+        check_switching(sw._replace(light=sw.light._replace(count=16)))

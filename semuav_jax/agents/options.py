@@ -83,12 +83,20 @@ def running(opt: Option, obs: OptionObs, params: EnvParams) -> jax.Array:
     return opt.active & ((opt.code == HOME_CODE) | ((m < opt.k - 1e-3) & (m < params.M - 1e-3)))
 
 
-def step_option(opt: Option, choice: jax.Array, obs: OptionObs, params: EnvParams) -> Option:
+def planned_tour(obs: OptionObs, params: EnvParams) -> jax.Array:
+    """(N,) the tour the options follow (eq. 6.5), planned from ``obs``: through the devices that fit
+    and hold fewer than OPTION_K[0] symbols."""
+    return tour_order(obs.q, obs.dev_pos, obs.fits & (obs.m < OPTION_K[0] - 1e-3), params.q_fin)
+
+
+def step_option(
+    opt: Option, choice: jax.Array, obs: OptionObs, params: EnvParams, tour: jax.Array | None = None
+) -> Option:
     """The option of this slot: ``opt`` while it runs (and nothing is forced), else a decision for
-    ``choice`` (or the forced choice)."""
+    ``choice`` (or the forced choice) along ``tour`` (None: :func:`planned_tour` now)."""
     decide = ~running(opt, obs, params) | (opt.forced >= 0)
     choice = jnp.where(opt.forced >= 0, opt.forced, choice).astype(jnp.int32)
-    tour = tour_order(obs.q, obs.dev_pos, obs.fits & (obs.m < OPTION_K[0] - 1e-3), params.q_fin)
+    tour = planned_tour(obs, params) if tour is None else tour
     code, k = option_code(choice, obs.m, obs.fits, obs.order, tour, params)
     return Option(
         code=jnp.where(decide, code, opt.code),

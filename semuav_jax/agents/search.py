@@ -3,7 +3,8 @@ improvement of the greedy agent. Every ``every`` slots the BS simulates, from th
 the end of the mission with fresh delay draws, the agent itself and each of its actions sent for
 the next ``every`` slots and the agent after it, and sends the best; the Q-network is the base
 policy of every simulation (``semuav_jax.lookahead``). An option agent (eq. 6.4) simulates going on
-with the option it runs and starting each of its options now, the agent after each."""
+with what runs and starting each of its options now, the agent after each, and may also switch to
+a constant option (a dwell rule in option space) kept until a later decision switches again."""
 
 from __future__ import annotations
 
@@ -14,20 +15,24 @@ import jax
 import jax.numpy as jnp
 
 from semuav_jax.actions import OPTION_HOME, OPTION_K, OPTION_TARGETS
+from semuav_jax.agents.demos import SWITCH_OPTIONS
 from semuav_jax.agents.network import num_actions, q_network
-from semuav_jax.agents.options import idle
-from semuav_jax.agents.policy import agent_input, greedy_policy
-from semuav_jax.lookahead import Forced, Switching, forced, rollout_switching
+from semuav_jax.agents.options import Option, OptionObs, idle, option_observe, planned_tour, step_option
+from semuav_jax.agents.policy import agent_input, agent_shield, greedy_policy
+from semuav_jax.engine import Policy
+from semuav_jax.lookahead import Forced, Light, Switching, forced, rollout_switching
 
 if TYPE_CHECKING:
     from semuav_jax.agents.config import DDQNConfig
     from semuav_jax.agents.network import QNetwork
+    from semuav_jax.env import EnvState
     from semuav_jax.params import EnvParams
 
 SEARCH_EVERY = 8  # slots (4 s) between two decisions
 SEARCH_SAMPLES = 1  # delay draws per candidate and decision
 SEARCH_TARGETS = OPTION_TARGETS  # option agents: the targets j (eq. 6.4) whose options are simulated
 SEARCH_TOP = None  # option agents: simulate only the agent's TOP best options by Q (None: every one)
+SEARCH_RULES = SWITCH_OPTIONS  # option agents: the constant options the search may switch to (eq. 7.15)
 
 
 @cache
@@ -41,29 +46,94 @@ def search_switching(network: QNetwork, config: DDQNConfig, every: int, samples:
     return Switching(policy, candidate, A + 1, every, samples)
 
 
+def rule_policy(config: DDQNConfig) -> Policy:
+    """A constant option (eq. 6.4) along a tour fixed when it starts: policy state ``((option id,
+    tour), Option)``; the agent's shield and the devices that fit, no network input computed."""
+
+    def act(ps: tuple[tuple[jax.Array, jax.Array], Option], obs: OptionObs, params: EnvParams) -> tuple[jax.Array, Any]:
+        (option, tour), opt = ps
+        opt = step_option(opt, option, obs, params, tour)
+        return opt.code, ((option, tour), opt)
+
+    observe = option_observe(lambda state, params: jnp.zeros(0), config.option_margin)
+    return Policy(act=act, mode=config.actions, observe=observe, shield=agent_shield(config))
+
+
 @cache
 def option_switching(
-    network: QNetwork, config: DDQNConfig, every: int, samples: int, targets: int, top: int | None = None
+    network: QNetwork,
+    config: DDQNConfig,
+    every: int,
+    samples: int,
+    targets: int,
+    top: int | None = None,
+    rules: tuple[int, ...] = (),
+    devices: int = 0,
 ) -> Switching:
-    """Candidates: c = 0 the agent going on with its option (or choosing one); c = 1 .. targets L its
-    option c - 1 (targets j < ``targets`` of eq. 6.4, every k) started now; the last, home; the
-    agent after each. With ``top``, a decision simulates c = 0 and the ``top`` options of those
-    (home included) with the highest Q at the decision."""
+    """Candidates: c = 0 what runs going on (the agent, or the rule it follows); c = 1 .. targets L
+    its option c - 1 (targets j < ``targets`` of eq. 6.4, every k) started now, the agent after it;
+    c = targets L + 1, home; then, for each option of ``rules``, that option started now and chosen
+    at every later slot along the tour planned now (eq. 6.5; a dwell rule in option space, e.g.
+    TSP-dwell at k), until a decision switches (policy switching over those rules and the agent,
+    eq. 7.15; the rules simulated by :func:`rule_policy`). With ``top``, a decision simulates c = 0,
+    the ``top`` options (home included) with the highest Q at the decision, and every rule. Policy
+    state: ((weights, the rule followed or -1 for the agent, its tour), the running option);
+    ``devices``: the env's N (the length of a tour), needed with ``rules``."""
     last = targets * len(OPTION_K) + 1
+    ids = jnp.asarray(rules + (0,), jnp.int32)
+    agent = greedy_policy(network, config)
+    unplanned = jnp.full(devices if rules else 0, -1, jnp.int32)  # a rule plans its tour at its first slot
+
+    def act(ps: tuple[tuple[Any, jax.Array, jax.Array], Option], obs: OptionObs, params: EnvParams) -> tuple:
+        (net, rule, tour), opt = ps
+        now = planned_tour(obs, params)
+        choice = jnp.where(rule >= 0, rule, jnp.argmax(network.apply(net, obs.x)))
+        if rules:
+            tour = jnp.where(tour[0] < 0, now, tour)
+            now = jnp.where(rule >= 0, tour, now)
+        opt = step_option(opt, choice, obs, params, now)
+        return opt.code, ((net, rule, tour), opt)
 
     def shortlist(net: Any, _: Any, state: Any, now: Any, params: EnvParams) -> jax.Array:
         q = network.apply(net, agent_input(state, params, config))
         q = jnp.concatenate([q[: last - 1], q[OPTION_HOME:]])  # candidate c = 1 .. last: Q index c - 1
-        return jnp.concatenate([jnp.zeros(1, jnp.int32), 1 + jax.lax.top_k(q, top)[1].astype(jnp.int32)])
+        best = 1 + jax.lax.top_k(q, top)[1].astype(jnp.int32)
+        return jnp.concatenate([jnp.zeros(1, jnp.int32), best, last + 1 + jnp.arange(len(rules), dtype=jnp.int32)])
 
-    def candidate(net: Any, _: Any, c: jax.Array, now: Any) -> tuple[Any, Any]:
-        opt = idle() if now is None else now[1]
-        option = jnp.where(c == last, OPTION_HOME, c - 1)
-        return net, opt.replace(forced=jnp.where(c > 0, option, opt.forced).astype(jnp.int32))
+    def option_of(c: jax.Array) -> jax.Array:
+        return jnp.where(c > last, ids[jnp.clip(c - last - 1, 0, len(rules))], jnp.where(c == last, OPTION_HOME, c - 1))
+
+    def candidate(net: Any, _: Any, c: jax.Array, now: Any) -> tuple:
+        (_, rule, tour), opt = ((None, jnp.int32(-1), unplanned), idle()) if now is None else now
+        option = option_of(c)
+        rule = jnp.where(c > last, option, jnp.where(c > 0, -1, rule)).astype(jnp.int32)
+        tour = jnp.where(c > 0, unplanned, tour)
+        return (net, rule, tour), opt.replace(forced=jnp.where(c > 0, option, opt.forced).astype(jnp.int32))
+
+    def light(net: Any, _: Any, c: jax.Array, now: Any, state: EnvState, params: EnvParams) -> tuple:
+        """Candidate c > last as :func:`rule_policy` flies it: its tour planned from ``state``."""
+        option, opt = option_of(c), idle() if now is None else now[1]
+        tour = planned_tour(simulated.observe(state, params), params)
+        return (option, tour), opt.replace(forced=option)
 
     if top is not None and not 1 <= top <= last:
         raise ValueError(f"top must be in [1, {last}] (the options of {targets} targets and home), got {top!r}")
-    return Switching(greedy_policy(network, config), candidate, last + 1, every, samples, shortlist if top else None)
+    bad = [r for r in rules if not (isinstance(r, int) and 0 <= r < OPTION_HOME)]
+    if bad:
+        raise ValueError(f"rules must be options in [0, {OPTION_HOME}), got {bad}")
+    if rules and not (isinstance(devices, int) and devices >= 1):
+        raise ValueError(f"devices must be the env's N >= 1 with rules, got {devices!r}")
+    simulated = rule_policy(config)
+    policy = Policy(act=act, mode=config.actions, observe=agent.observe, shield=agent.shield)
+    return Switching(
+        policy,
+        candidate,
+        last + 1 + len(rules),
+        every,
+        samples,
+        shortlist if top else None,
+        Light(simulated, light, len(rules)) if rules else None,
+    )
 
 
 def agent_switching(
@@ -73,12 +143,17 @@ def agent_switching(
     samples: int = SEARCH_SAMPLES,
     targets: int = SEARCH_TARGETS,
     top: int | None = SEARCH_TOP,
+    rules: tuple[int, ...] | None = None,
 ) -> Switching:
     """The search of an agent of ``config``: :func:`option_switching` for option agents, else
-    :func:`search_switching` over all its actions (``targets`` and ``top`` are the options')."""
+    :func:`search_switching` over all its actions (``targets``, ``top`` and ``rules`` are the options';
+    ``rules`` None: :data:`SEARCH_RULES`)."""
     network = q_network(params, config)
     if config.uses_options:
-        return option_switching(network, config, every, samples, targets, top)
+        rules = SEARCH_RULES if rules is None else tuple(rules)
+        return option_switching(network, config, every, samples, targets, top, rules, int(params.N))
+    if rules:
+        raise ValueError(f"rules are constant options: the agent must choose options, not {config.actions!r} actions")
     return search_switching(network, config, every, samples, num_actions(params, config))
 
 
@@ -91,7 +166,8 @@ def search_metrics(
     samples: int = SEARCH_SAMPLES,
     targets: int = SEARCH_TARGETS,
     top: int | None = SEARCH_TOP,
+    rules: tuple[int, ...] | None = None,
 ) -> tuple[dict[str, jax.Array], jax.Array, None]:
     """Per-episode metrics of the agent with search (weights ``net`` of one seed), the (E,
     decisions) chosen candidates (0: the agent's own action) and None (no trace)."""
-    return rollout_switching(agent_switching(config, params, every, samples, targets, top), keys, params, net)
+    return rollout_switching(agent_switching(config, params, every, samples, targets, top, rules), keys, params, net)

@@ -1,6 +1,6 @@
 """The agent with search at the BS against the reactive agent and the references
 
-``semuav-search RUN_FOLDER [--episodes 100] [--every 8] [--targets 4] [--top M] [--validation]
+``semuav-search RUN_FOLDER [--episodes 100] [--every 8] [--targets 4] [--top M] [--no-rules] [--validation]
 [--tuning EVAL_JSON] [--json out.json]``: the table of ``semuav_jax.experiments.search`` for a
 finished train.py run folder, the dwell knobs from its eval.json (or ``--tuning``'s; docs/ddqn.md,
 "The agent with search"), printed as Markdown.
@@ -25,6 +25,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--top", type=int, default=SEARCH_TOP, help="option agents: simulate only the agent's M best options by Q"
     )
+    ap.add_argument(
+        "--no-rules",
+        action="store_true",
+        help="option agents: simulate the agent's own options only, no constant options",
+    )
     ap.add_argument("--validation", action="store_true", help="validation layouts (keys.VALIDATION_SEED): for choosing")
     ap.add_argument("--tuning", help="the eval.json whose dwell knobs to use (default: the folder's own)")
     ap.add_argument("--json", help="write the numbers here (atomically)")
@@ -36,6 +41,7 @@ def main(argv: list[str] | None = None) -> int:
             every=args.every,
             targets=args.targets,
             top=args.top,
+            rules=not args.no_rules,
             validation=args.validation,
             tuning=args.tuning,
         )

@@ -27,7 +27,14 @@ from baselines.report import BANDWIDTHS, certified_bound, switch_metrics
 from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.network import q_network
 from semuav_jax.agents.runs import EVAL_FILE, load_run
-from semuav_jax.agents.search import SEARCH_EVERY, SEARCH_TARGETS, SEARCH_TOP, agent_switching, search_metrics
+from semuav_jax.agents.search import (
+    SEARCH_EVERY,
+    SEARCH_RULES,
+    SEARCH_TARGETS,
+    SEARCH_TOP,
+    agent_switching,
+    search_metrics,
+)
 from semuav_jax.experiments.references import lookup
 from semuav_jax.experiments.stages import packable
 from semuav_jax.keys import TEST_SEED, VALIDATION_SEED, episode_keys
@@ -46,13 +53,15 @@ def compare_search(
     every: int = SEARCH_EVERY,
     targets: int = SEARCH_TARGETS,
     top: int | None = SEARCH_TOP,
+    rules: bool = True,
     validation: bool = False,
     tuning: str | os.PathLike | None = None,
     log: Callable[[str], None] = print,
 ) -> dict:
     """Every number of the table (JSON-ready); the dwell knobs come from ``folder``'s eval.json, or
     from the eval.json ``tuning`` of another run of the same env. ``targets``, ``top``: the candidate
-    devices of an option agent's search and how many of their options it simulates (``agents/search.py``)."""
+    devices of an option agent's search and how many of their options it simulates; ``rules``: whether
+    it may also switch to the constant options of ``SEARCH_RULES`` (``agents/search.py``)."""
     if episodes < 2:
         raise ValueError(f"episodes must be >= 2 (an interval needs two), got {episodes}")
     run, nets = load_run(folder)
@@ -72,7 +81,10 @@ def compare_search(
     if missing:
         raise ValueError(f"{source} has no dwell tuning at B = {missing}")
     params = run.env_params()
-    check_switching(agent_switching(run.agent, params, every, 1, targets, top))  # bad knobs fail before the references
+    rule_ids = SEARCH_RULES if rules and run.agent.uses_options else ()
+    check_switching(
+        agent_switching(run.agent, params, every, 1, targets, top, rule_ids)
+    )  # bad knobs fail before the references
     network = q_network(params, run.agent)
     seed = VALIDATION_SEED if validation else TEST_SEED
     keys = episode_keys(seed, episodes)
@@ -99,7 +111,8 @@ def compare_search(
             net = jax.tree.map(lambda x, s=s: x[s], nets)
             t0 = time.perf_counter()
             m = map_episodes(
-                lambda k, net=net, pb=pb: search_metrics(net, run.agent, k, pb, every, 1, targets, top)[0], keys
+                lambda k, net=net, pb=pb: search_metrics(net, run.agent, k, pb, every, 1, targets, top, rule_ids)[0],
+                keys,
             )
             own = {k: v[s, j] for k, v in agent.items()}
             base = {"agent": own["mean_psnr"], **{k: r["mean_psnr"] for k, r in refs.items()}}
@@ -131,6 +144,7 @@ def compare_search(
         "every": every,
         "targets": targets if run.agent.uses_options else None,
         "top": top if run.agent.uses_options else None,
+        "rules": len(rule_ids),
         "seeds": seeds,
         "rows": rows,
     }
@@ -160,6 +174,7 @@ def markdown(r: dict) -> str:
     cells = lambda s: [f"{s[c][0]:+.2f} {pm(s[c][1])}" for c in gaps]
     knobs = f"a decision every {r['every']} slots" + (f", {r['targets']} target devices" if r["targets"] else "")
     knobs += f", the agent's {r['top']} best options by Q" if r.get("top") else ""
+    knobs += f", {r['rules']} constant options" if r.get("rules") else ""
     lines = [
         f"First {r['episodes']} {r['layouts']} layouts (seed {r['layout_seed']}); {knobs}; {r['seeds']} seeds, "
         "each paired per layout; across seeds: mean of the seeds' means ± t interval.",
