@@ -73,8 +73,8 @@ def option_switching(
     """Candidates: c = 0 what runs going on (the agent, or the rule it follows); c = 1 .. targets L
     its option c - 1 (targets j < ``targets`` of eq. 6.4, every k) started now, the agent after it;
     c = targets L + 1, home; then, for each option of ``rules``, that option started now and chosen
-    at every later slot along the tour planned now (eq. 6.5; a dwell rule in option space, e.g.
-    TSP-dwell at k), until a decision switches (policy switching over those rules and the agent,
+    again at every option's end, along the tour planned now (eq. 6.5; a dwell rule in option space,
+    e.g. TSP-dwell at k), until a decision switches (policy switching over those rules and the agent,
     eq. 7.15; the rules simulated by :func:`rule_policy`). With ``top``, a decision simulates c = 0,
     the ``top`` options (home included) with the highest Q at the decision, and every rule. Policy
     state: ((weights, the rule followed or -1 for the agent, its tour), the running option);
