@@ -22,7 +22,7 @@ import numpy as np
 from baselines.dwell_switch import dwell_switch_metrics, knob_table, switching
 from baselines.evaluate import tsp_ranks
 from semuav_jax.agents.runs import load_run
-from semuav_jax.agents.search import SEARCH_EVERY, SEARCH_RULES, SEARCH_TARGETS, agent_switching, search_metrics
+from semuav_jax.agents.search import SEARCH_EVERY, SEARCH_TARGETS, agent_switching, search_metrics
 from semuav_jax.env import reset_state
 from semuav_jax.io import atomic_write
 from semuav_jax.keys import TEST_SEED, episode_keys
@@ -44,12 +44,14 @@ params = run.env_params().replace(B=25e3)
 net = jax.tree.map(lambda x: jnp.asarray(x[0]), nets)
 keys = episode_keys(TEST_SEED, max(args.states + 1, args.layouts))  # state 0 only compiles
 rank = np.asarray(tsp_ranks(keys, params, workers=1))
-rules = () if args.no_rules or not run.agent.uses_options else SEARCH_RULES
+rules = () if args.no_rules else None  # None: the agent's own (SEARCH_RULES for option agents)
 knobs = (args.every, 1, args.targets, args.top, rules)
+searched = check_switching(agent_switching(run.agent, params, *knobs))
+light = searched.light.count if searched.light else 0  # the constant options among the candidates
 cases = {
     "dwell-switch": (check_switching(switching()), knob_table(25.0, 0.0), lambda i: jnp.asarray(rank[i])),
     "agent with search": (
-        check_switching(agent_switching(run.agent, params, *knobs)),
+        searched,
         net,
         lambda i: jnp.zeros(()),
     ),
@@ -67,7 +69,7 @@ for name, (sw, shared, per) in cases.items():
     rows.append(
         {
             "policy": name,
-            "candidates": sw.count if sw.shortlist is None else args.top + 1 + len(rules),  # simulated per decision
+            "candidates": sw.count if sw.shortlist is None else args.top + 1 + light,  # simulated per decision
             "median_ms": float(np.median(ms)),
             "p99_ms": float(np.percentile(ms, 99)),
         }
@@ -89,5 +91,5 @@ print(f"| policy | candidates | ms per decision, median | 99th percentile | {arg
 print("|---|---|---|---|---|")
 for r in rows:
     print(f"| {r['policy']} | {r['candidates']} | {r['median_ms']:.1f} | {r['p99_ms']:.1f} | {r['episodes_s']:.1f} |")
-meta = {"run": args.run, "every": args.every, "targets": args.targets, "top": args.top, "rules": len(rules)}
+meta = {"run": args.run, "every": args.every, "targets": args.targets, "top": args.top, "rules": light}
 atomic_write(args.out, json.dumps({"devices": jax.device_count(), **meta, "rows": rows}, indent=1).encode())

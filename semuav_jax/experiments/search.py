@@ -29,7 +29,6 @@ from semuav_jax.agents.network import q_network
 from semuav_jax.agents.runs import EVAL_FILE, load_run
 from semuav_jax.agents.search import (
     SEARCH_EVERY,
-    SEARCH_RULES,
     SEARCH_TARGETS,
     SEARCH_TOP,
     agent_switching,
@@ -81,10 +80,8 @@ def compare_search(
     if missing:
         raise ValueError(f"{source} has no dwell tuning at B = {missing}")
     params = run.env_params()
-    rule_ids = SEARCH_RULES if rules and run.agent.uses_options else ()
-    check_switching(
-        agent_switching(run.agent, params, every, 1, targets, top, rule_ids)
-    )  # bad knobs fail before the references
+    rule_ids = None if rules else ()  # None: the agent's own (SEARCH_RULES for option agents)
+    sw = check_switching(agent_switching(run.agent, params, every, 1, targets, top, rule_ids))  # fails before the refs
     network = q_network(params, run.agent)
     seed = VALIDATION_SEED if validation else TEST_SEED
     keys = episode_keys(seed, episodes)
@@ -144,7 +141,7 @@ def compare_search(
         "every": every,
         "targets": targets if run.agent.uses_options else None,
         "top": top if run.agent.uses_options else None,
-        "rules": len(rule_ids),
+        "rules": sw.light.count if sw.light else 0,
         "seeds": seeds,
         "rows": rows,
     }
