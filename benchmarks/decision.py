@@ -35,7 +35,7 @@ ap.add_argument("--run", default=str(Path(__file__).resolve().parents[1] / "semu
 ap.add_argument("--every", type=int, default=SEARCH_EVERY, help="slots between two decisions of the agent")
 ap.add_argument("--targets", type=int, default=SEARCH_TARGETS, help="option agents: candidate devices")
 ap.add_argument("--top", type=int, default=None, help="option agents: simulate the M best options by Q")
-ap.add_argument("--no-rules", action="store_true", help="option agents: no constant options among the candidates")
+ap.add_argument("--no-rules", action="store_true", help="option agents: no constant options or curve rules")
 ap.add_argument("--out", default=str(Path(__file__).with_suffix(".json")))
 args = ap.parse_args()
 
@@ -44,10 +44,10 @@ params = run.env_params().replace(B=25e3)
 net = jax.tree.map(lambda x: jnp.asarray(x[0]), nets)
 keys = episode_keys(TEST_SEED, max(args.states + 1, args.layouts))  # state 0 only compiles
 rank = np.asarray(tsp_ranks(keys, params, workers=1))
-rules = () if args.no_rules else None  # None: the agent's own (SEARCH_RULES for option agents)
-knobs = (args.every, 1, args.targets, args.top, rules)
+rules = () if args.no_rules else None  # None: the agent's own (SEARCH_RULES, SEARCH_CURVES for option agents)
+knobs = (args.every, 1, args.targets, args.top, rules, rules)
 searched = check_switching(agent_switching(run.agent, params, *knobs))
-light = searched.light.count if searched.light else 0  # the constant options among the candidates
+light = searched.light.count if searched.light else 0  # the rules among the candidates
 cases = {
     "dwell-switch": (check_switching(switching()), knob_table(25.0, 0.0), lambda i: jnp.asarray(rank[i])),
     "agent with search": (

@@ -70,22 +70,23 @@ def shard_episodes(tree: Any) -> Any:
     return jax.tree.map(lambda x: _put(_pad(jnp.asarray(x), size), sharding), tree)
 
 
-def block_size(n: int) -> int:
-    """Episodes per device and call in :func:`map_episodes` for a batch of n: ``min(BLOCK, n)``."""
-    return min(BLOCK, n)
+def block_size(n: int, block: int = BLOCK) -> int:
+    """Episodes per device and call in :func:`map_episodes` for a batch of n: ``min(block, n)``."""
+    return min(block, n)
 
 
-def map_episodes(fn: Callable, tree: Any, axis: int = -1) -> Any:
+def map_episodes(fn: Callable, tree: Any, axis: int = -1, block: int = BLOCK) -> Any:
     """``fn`` (a jitted function of a pytree of per-episode inputs, leading axis n) over blocks of
-    :func:`block_size` (n) episodes, the batch padded by repeating its last entry; returns fn's
-    leaves (episode axis ``axis``) for the n episodes, whole NumPy arrays in every process.
+    :func:`block_size` (n, ``block``) episodes, the batch padded by repeating its last entry; returns
+    fn's leaves (episode axis ``axis``) for the n episodes, whole NumPy arrays in every process. A
+    larger ``block`` runs faster where one step of ``fn`` is many small operations (the search).
 
     Each process takes an equal share of the blocks and runs each block on one of its devices as a
     single-device program (not one program partitioned over the devices, whose float results
     differ in the last bits), so episode i is row i mod block of a block computed by the same
     program whatever the devices and processes."""
     n = jax.tree.leaves(tree)[0].shape[0]
-    block, devices = block_size(n), jax.local_devices()
+    block, devices = block_size(n, block), jax.local_devices()
     size = -(-n // (block * jax.device_count())) * block * jax.device_count()
     padded = jax.tree.map(lambda x: np.asarray(_pad(jnp.asarray(x), size)), tree)
     share = size // jax.process_count()

@@ -138,7 +138,7 @@ def test_the_search_table_names_the_layouts_it_used():
                        log=lambda _: None)  # fmt: skip
     assert r["layout_seed"] == VALIDATION_SEED and r["layouts"] == "validation"
     assert f"First 2 validation layouts (seed {VALIDATION_SEED})" in markdown(r)
-    assert r["rules"] == 12 and "4 target devices, 12 constant options;" in markdown(r)
+    assert r["rules"] == 15 and "4 target devices, 15 rules (constant options and curve rules);" in markdown(r)
     (row,) = r["rows"]
     assert len(row["seeds"]) == r["seeds"] == 3
     for s in row["seeds"]:
@@ -218,3 +218,53 @@ def test_option_search_switches_to_constant_options_and_keeps_them(curves):
         option_switching(network, cfg, 8, 1, 2, None, (3,))
     with pytest.raises(ValueError, match=r"light.count must be an integer in \[1, 16\), got 16"):
         check_switching(sw._replace(light=sw.light._replace(count=16)))
+
+
+def test_curve_rules_choose_k_on_the_devices_curve(curves):
+    """A curve rule (``curves``) serves the first device along the tour until the k of OPTION_K that
+    maximizes C[i_n, k] - phi_n - lambda (k - m_n) beta / R(0), computed here by hand: lambda 0 takes
+    the k of the largest gain, a huge lambda the smallest k. Its candidate forces no option but ends
+    the running one, so the rule decides at the next slot; the light policy simulates it to the
+    values the agent's own policy gives; lambdas must be floats >= 0."""
+    from semuav_jax import channel
+    from semuav_jax.actions import OPTION_HOME, OPTION_K
+    from semuav_jax.agents.options import idle, option_observe
+    from semuav_jax.agents.search import curve_gains, option_switching, rule_choice
+    from semuav_jax.env import reset_state
+    from semuav_jax.lookahead import check_switching, choose
+
+    cfg = DDQNConfig(hidden=(16,), actions="option", shield_margin=2.0)
+    params = make_params(curves, B=25e3)  # the whole mission: some devices fit
+    state = reset_state(jax.random.key(7), params)
+    observe = option_observe(curve_gains, cfg.option_margin)
+    n0 = int(np.argmax(np.asarray(observe(state.replace(m=state.m * 0.0), params).fits)))  # a device that fits
+    state = state.replace(m=state.m.at[:].set(0.0).at[n0].set(10.0), phi=state.phi.at[n0].set(7.0))
+    obs = observe(state, params)
+    tour = jnp.asarray([n0] + [n for n in range(int(params.N)) if n != n0], jnp.int32)
+    C, img = np.asarray(params.C), int(state.dev_img[n0])
+    k = np.asarray(OPTION_K)
+    gain = np.maximum(C[img, k.astype(int)] - 7.0, 0.0)
+    stay = (k - 10.0) * float(params.beta) / float(channel.rest_rate(params))
+    assert bool(obs.fits[n0])  # device n0, first along the tour, is every option's device
+    assert np.argmax(gain) > 0  # lambda 0 and a huge lambda choose different k
+    for lam, i in zip((0.0, 0.5, 1e4), range(3)):
+        rule = jnp.int32(OPTION_HOME + 1 + i)
+        want = np.argmax(gain - lam * stay)
+        got = int(rule_choice(rule, obs.x, obs, tour, params, (0.0, 0.5, 1e4)))
+        assert got == want, (lam, got, want)
+    assert int(rule_choice(jnp.int32(7), obs.x, obs, tour, params, (0.5,))) == 7
+    network = q_network(params, cfg)
+    net = network.init(jax.random.key(1), jnp.zeros((input_size(params, cfg),)))
+    sw = option_switching(network, cfg, 8, 1, 2, None, (3,), params.N, (0.5,))  # go on, 12 options, home, 2 rules
+    assert sw.count == 16 and sw.light.count == 2
+    unplanned = jnp.full(params.N, -1, jnp.int32)
+    now = ((net, jnp.int32(-1), unplanned), idle().replace(code=jnp.int32(4), active=jnp.bool_(True)))
+    (_, rule, _), opt = sw.candidate(net, None, jnp.int32(15), now)
+    assert (int(rule), int(opt.forced), bool(opt.active)) == (OPTION_HOME + 1, -1, False)
+    fresh = reset_state(jax.random.key(7), params)
+    now = ((net, jnp.int32(-1), unplanned), idle())
+    light = choose(check_switching(sw), fresh, net, None, jax.random.key(3), params, now)[1]
+    heavy = choose(check_switching(sw._replace(light=None)), fresh, net, None, jax.random.key(3), params, now)[1]
+    np.testing.assert_array_equal(np.asarray(light), np.asarray(heavy))
+    with pytest.raises(ValueError, match=r"curves must be lambdas >= 0"):
+        option_switching(network, cfg, 8, 1, 2, None, (3,), params.N, (-1.0,))

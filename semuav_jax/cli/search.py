@@ -28,7 +28,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--no-rules",
         action="store_true",
-        help="option agents: simulate the agent's own options only, no constant options",
+        help="option agents: simulate the agent's own options only, no constant options or curve rules",
     )
     ap.add_argument("--validation", action="store_true", help="validation layouts (keys.VALIDATION_SEED): for choosing")
     ap.add_argument("--tuning", help="the eval.json whose dwell knobs to use (default: the folder's own)")

@@ -28,6 +28,7 @@ from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.network import q_network
 from semuav_jax.agents.runs import EVAL_FILE, load_run
 from semuav_jax.agents.search import (
+    SEARCH_BLOCK,
     SEARCH_EVERY,
     SEARCH_TARGETS,
     SEARCH_TOP,
@@ -60,7 +61,8 @@ def compare_search(
     """Every number of the table (JSON-ready); the dwell knobs come from ``folder``'s eval.json, or
     from the eval.json ``tuning`` of another run of the same env. ``targets``, ``top``: the candidate
     devices of an option agent's search and how many of their options it simulates; ``rules``: whether
-    it may also switch to the constant options of ``SEARCH_RULES`` (``agents/search.py``)."""
+    it may also switch to the constant options of ``SEARCH_RULES`` and the curve rules of ``SEARCH_CURVES``
+    (``agents/search.py``)."""
     if episodes < 2:
         raise ValueError(f"episodes must be >= 2 (an interval needs two), got {episodes}")
     run, nets = load_run(folder)
@@ -80,8 +82,8 @@ def compare_search(
     if missing:
         raise ValueError(f"{source} has no dwell tuning at B = {missing}")
     params = run.env_params()
-    rule_ids = None if rules else ()  # None: the agent's own (SEARCH_RULES for option agents)
-    sw = check_switching(agent_switching(run.agent, params, every, 1, targets, top, rule_ids))  # fails before the refs
+    rule_ids = None if rules else ()  # None: the agent's own (SEARCH_RULES, SEARCH_CURVES for option agents)
+    sw = check_switching(agent_switching(run.agent, params, every, 1, targets, top, rule_ids, rule_ids))
     network = q_network(params, run.agent)
     seed = VALIDATION_SEED if validation else TEST_SEED
     keys = episode_keys(seed, episodes)
@@ -108,8 +110,11 @@ def compare_search(
             net = jax.tree.map(lambda x, s=s: x[s], nets)
             t0 = time.perf_counter()
             m = map_episodes(
-                lambda k, net=net, pb=pb: search_metrics(net, run.agent, k, pb, every, 1, targets, top, rule_ids)[0],
+                lambda k, net=net, pb=pb: search_metrics(
+                    net, run.agent, k, pb, every, 1, targets, top, rule_ids, rule_ids
+                )[0],
                 keys,
+                block=SEARCH_BLOCK,
             )
             own = {k: v[s, j] for k, v in agent.items()}
             base = {"agent": own["mean_psnr"], **{k: r["mean_psnr"] for k, r in refs.items()}}
@@ -171,7 +176,7 @@ def markdown(r: dict) -> str:
     cells = lambda s: [f"{s[c][0]:+.2f} {pm(s[c][1])}" for c in gaps]
     knobs = f"a decision every {r['every']} slots" + (f", {r['targets']} target devices" if r["targets"] else "")
     knobs += f", the agent's {r['top']} best options by Q" if r.get("top") else ""
-    knobs += f", {r['rules']} constant options" if r.get("rules") else ""
+    knobs += f", {r['rules']} rules (constant options and curve rules)" if r.get("rules") else ""
     lines = [
         f"First {r['episodes']} {r['layouts']} layouts (seed {r['layout_seed']}); {knobs}; {r['seeds']} seeds, "
         "each paired per layout; across seeds: mean of the seeds' means ± t interval.",
