@@ -1,10 +1,12 @@
 """Shared fixtures: synthetic, monotone PSNR curves so simulator tests do not depend on DeepJSCC;
 the options of a train.py run of seconds, and a child process that Ctrl-C reaches."""
 
+import gc
 import signal
 import subprocess
 from pathlib import Path
 
+import jax
 import pytest
 
 from semuav_jax.curves import synthetic_curves
@@ -22,6 +24,16 @@ def _reference_cache(tmp_path_factory):
     patch.setenv("SEMUAV_CACHE", str(tmp_path_factory.mktemp("semuav-cache")))
     yield
     patch.undo()
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _release_compiled_programs():
+    """Drop JAX's compiled programs after each test module: every executable holds memory maps, and
+    the whole suite in one process otherwise passes the kernel's vm.max_map_count (65530), where
+    XLA's compiler segfaults (seen at test_tour with 433 fast tests)."""
+    yield
+    jax.clear_caches()
+    gc.collect()
 
 
 @pytest.fixture(scope="session")
