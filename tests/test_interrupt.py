@@ -1,6 +1,7 @@
 """Ctrl-C in the commands: one line, exit code 130, a folder that resumes; also when Python drops
 the KeyboardInterrupt (raised while a garbage-collector callback runs)."""
 
+import gc
 import os
 import signal
 import sys
@@ -13,30 +14,52 @@ from semuav_jax.cli import interruptible, stop_if_asked
 
 
 def test_a_dropped_keyboard_interrupt_still_stops_at_the_next_step(capsys):
-    """The interrupt lands where it is swallowed (as in a gc callback); the loop's next
-    stop_if_asked ends the command with 130, and the steps after it never run."""
+    """The interrupt lands inside a gc callback, where Python drops it: no 'Exception ignored' traceback
+    on stderr, the loop's next stop_if_asked ends the command with 130, the steps after it never run;
+    an unrelated exception dropped the same way is still reported."""
     steps = []
+    fired = []
+
+    def ctrl_c_in_gc(phase, info):
+        if phase == "start" and not fired:
+            fired.append(phase)
+            os.kill(os.getpid(), signal.SIGINT)
 
     def run(argv):
         for i in range(5):
             stop_if_asked()
             if i == 2:
+                gc.callbacks.append(ctrl_c_in_gc)
                 try:
-                    os.kill(os.getpid(), signal.SIGINT)
-                except KeyboardInterrupt:
-                    pass  # dropped, as Python does inside a gc callback
+                    gc.collect()
+                finally:
+                    gc.callbacks.remove(ctrl_c_in_gc)
             steps.append(i)
         return 0
 
+    def other_error_in_gc(phase, info):
+        if phase == "start":
+            raise ValueError("a real bug in a callback")
+
     # as in a foreground process: a test run in the background inherits SIGINT ignored
     before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    reported = []
+    hook, sys.unraisablehook = sys.unraisablehook, reported.append
     try:
         assert interruptible(run, [], "rerun it") == 130
-        assert steps == [0, 1, 2]
-        assert "interrupted; rerun it" in capsys.readouterr().err
+        assert fired and steps == [0, 1, 2]
+        err = capsys.readouterr().err
+        assert err.strip() == f"{os.path.basename(sys.argv[0])}: interrupted; rerun it" and not reported
         assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
-        assert interruptible(lambda argv: 0, [], "") == 0  # the flag does not outlive its command
+        assert sys.unraisablehook == reported.append
+        gc.callbacks.append(other_error_in_gc)
+        try:
+            assert interruptible(lambda argv: gc.collect() * 0, [], "") == 0  # the flag does not outlive its command
+        finally:
+            gc.callbacks.remove(other_error_in_gc)
+        assert [type(u.exc_value) for u in reported] == [ValueError]
     finally:
+        sys.unraisablehook = hook
         signal.signal(signal.SIGINT, before)
 
 

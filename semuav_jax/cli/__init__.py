@@ -19,6 +19,17 @@ def _on_sigint(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
+def _quiet_unraisable(hook: Callable) -> Callable:
+    """sys.unraisablehook that drops our own interrupt: Python reports a KeyboardInterrupt raised
+    inside a gc callback as 'Exception ignored ... Traceback' on stderr; stop_if_asked acts on it."""
+
+    def quiet(unraisable: object) -> None:
+        if not (_asked["stop"] and isinstance(getattr(unraisable, "exc_value", None), KeyboardInterrupt)):
+            hook(unraisable)
+
+    return quiet
+
+
 def stop_if_asked() -> None:
     """Raise KeyboardInterrupt if Ctrl-C was pressed: Python drops the one raised while a garbage
     collector callback (JAX has one) runs, so long loops call this between their steps."""
@@ -30,8 +41,10 @@ def interruptible(run: Callable[[list[str] | None], int], argv: list[str] | None
     """``run(argv)``, with Ctrl-C ending in one line and exit code 130 instead of a traceback (every
     file the commands write is written atomically, so the folder stays consistent)."""
     ours = signal.getsignal(signal.SIGINT) is signal.default_int_handler  # not where SIGINT is ignored
+    hook = sys.unraisablehook
     if ours:
         signal.signal(signal.SIGINT, _on_sigint)
+        sys.unraisablehook = _quiet_unraisable(hook)
     try:
         return run(argv)
     except (KeyboardInterrupt, Exception) as e:
@@ -44,4 +57,5 @@ def interruptible(run: Callable[[list[str] | None], int], argv: list[str] | None
     finally:
         if ours:
             signal.signal(signal.SIGINT, signal.default_int_handler)
+            sys.unraisablehook = hook
             _asked["stop"] = False
