@@ -42,9 +42,11 @@ def knob_table(v_c: float, margin: float, k_star: ArrayLike = SWITCH_K) -> jax.A
     return jnp.asarray(rows, jnp.float32)
 
 
-def dwell_candidate(table: jax.Array, rank: jax.Array, c: jax.Array, now: Any = None) -> tuple[jax.Array, DwellState]:
-    """The policy state of :func:`either_dwell` for row ``c`` of :func:`knob_table` (``now``, the
-    policy state at the decision, is not needed)."""
+def dwell_candidate(
+    table: jax.Array, rank: jax.Array, c: jax.Array, now: Any = None, state: Any = None, params: Any = None
+) -> tuple[jax.Array, DwellState]:
+    """The policy state of :func:`either_dwell` for row ``c`` of :func:`knob_table` (the policy and
+    env state at the decision, ``now`` and ``state``, are not needed)."""
     row = table[c]
     return row[0] > 0, init_dwell(row[1], row[2], row[3], rank)
 

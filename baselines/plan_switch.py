@@ -51,9 +51,15 @@ def hybrid(ps: HybridState, s: EnvState, params: EnvParams) -> tuple[jax.Array, 
 
 
 def hybrid_candidate(
-    table: jax.Array, per_episode: tuple[PlanState, jax.Array], c: jax.Array, now: Any = None
+    table: jax.Array,
+    per_episode: tuple[PlanState, jax.Array],
+    c: jax.Array,
+    now: Any = None,
+    state: Any = None,
+    params: Any = None,
 ) -> HybridState:
-    """Candidate 0: the plan; candidate c >= 1: row c - 1 of ``dwell_switch.knob_table`` (``now`` unused)."""
+    """Candidate 0: the plan; candidate c >= 1: row c - 1 of ``dwell_switch.knob_table`` (``now``,
+    ``state`` unused)."""
     plan, rank = per_episode
     return HybridState(c == 0, plan, dwell_candidate(table, rank, jnp.maximum(c - 1, 0)))
 

@@ -22,7 +22,7 @@ import numpy as np
 from baselines.dwell_switch import dwell_switch_metrics, knob_table, switching
 from baselines.evaluate import tsp_ranks
 from semuav_jax.agents.runs import load_run
-from semuav_jax.agents.search import SEARCH_EVERY, SEARCH_TARGETS, agent_switching, search_metrics
+from semuav_jax.agents.search import SEARCH_EVERY, SEARCH_TARGETS, SEARCH_TOP, agent_switching, search_metrics
 from semuav_jax.env import reset_state
 from semuav_jax.io import atomic_write
 from semuav_jax.keys import TEST_SEED, episode_keys
@@ -34,7 +34,7 @@ ap.add_argument("--layouts", type=int, default=100, help="layouts of the batched
 ap.add_argument("--run", default=str(Path(__file__).resolve().parents[1] / "semuav_jax" / "data" / "agent"))
 ap.add_argument("--every", type=int, default=SEARCH_EVERY, help="slots between two decisions of the agent")
 ap.add_argument("--targets", type=int, default=SEARCH_TARGETS, help="option agents: candidate devices")
-ap.add_argument("--top", type=int, default=None, help="option agents: simulate the M best options by Q")
+ap.add_argument("--top", type=int, default=SEARCH_TOP, help="option agents: simulate the M best options by Q")
 ap.add_argument("--no-rules", action="store_true", help="option agents: no constant options or curve rules")
 ap.add_argument("--out", default=str(Path(__file__).with_suffix(".json")))
 args = ap.parse_args()
@@ -44,8 +44,9 @@ params = run.env_params().replace(B=25e3)
 net = jax.tree.map(lambda x: jnp.asarray(x[0]), nets)
 keys = episode_keys(TEST_SEED, max(args.states + 1, args.layouts))  # state 0 only compiles
 rank = np.asarray(tsp_ranks(keys, params, workers=1))
-rules = () if args.no_rules else None  # None: the agent's own (SEARCH_RULES, SEARCH_CURVES for option agents)
-knobs = (args.every, 1, args.targets, args.top, rules, rules)
+# None: the agent's own (SEARCH_RULES, SEARCH_CURVES for option agents)
+rules = curves = () if args.no_rules else None
+knobs = (args.every, 1, args.targets, args.top, rules, curves)
 searched = check_switching(agent_switching(run.agent, params, *knobs))
 light = searched.light.count if searched.light else 0  # the rules among the candidates
 cases = {

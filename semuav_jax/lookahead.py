@@ -5,9 +5,10 @@ next decision. With one candidate that is the base policy itself this is rollout
 improvement; with several fixed rules it is policy switching (parallel rollout): in expectation
 never worse than the best candidate followed throughout.
 
-The candidates are ``candidate(shared, per_episode, c, now)`` for c = 0 .. C-1: ``shared`` (e.g.
-network weights) is the same for every episode, ``per_episode`` (e.g. a TSP order) has an episode
-axis, ``now`` is the policy state at the decision (None at t = 0; a candidate may go on from it).
+The candidates are ``candidate(shared, per_episode, c, now, state, params)`` for c = 0 .. C-1:
+``shared`` (e.g. network weights) is the same for every episode, ``per_episode`` (e.g. a TSP order)
+has an episode axis, ``now`` is the policy state at the decision (None at t = 0; a candidate may go
+on from it), ``state`` the env state there (e.g. to plan a tour once per decision, not per slot).
 Episodes are those of ``rollout`` for the same keys (layouts and delays), so results pair with
 every other policy's. A :class:`Light` simulates the last candidates with a cheaper policy that
 flies them alike (same decisions, less work per simulated slot).
@@ -37,9 +38,8 @@ LOOKAHEAD_STREAM = 0x5E4C  # fold_in tag of the lookahead's own delay draws (nev
 
 class Light(NamedTuple):
     """The last ``count`` candidates a decision simulates, flown by ``policy`` from
-    ``candidate(shared, per_episode, c, now, state, params)`` (``state``: the env state at the
-    decision): exactly as the Switching's own policy flies them, only cheaper (e.g. a constant
-    option needs no network, and a tour planned once at the decision)."""
+    ``candidate(shared, per_episode, c, now, state, params)``: exactly as the Switching's own
+    policy flies them, only cheaper (e.g. a constant option needs no network)."""
 
     policy: Policy
     candidate: Callable
@@ -50,7 +50,7 @@ class Switching(NamedTuple):
     """Decisions by simulation over the candidates of ``policy`` (hashable: a static argument of jit)."""
 
     policy: Policy
-    candidate: Callable  # (shared, per_episode, c, now) -> policy state of candidate c (now: at the decision)
+    candidate: Callable  # (shared, per_episode, c, now, state, params) -> policy state of candidate c at the decision
     count: int  # C candidates
     every: int  # slots between two decisions
     samples: int = 1  # delay draws each candidate is simulated with (the same for every candidate)
@@ -96,7 +96,7 @@ def choose(
 
     def values(policy: Policy, candidate: Callable, ids: jax.Array) -> jax.Array:
         def value(c: jax.Array) -> jax.Array:
-            ps = candidate(shared, per_episode, c, now)
+            ps = candidate(shared, per_episode, c, now, state, params)
             runs = jax.vmap(lambda k: episode(policy, k, params, ps, init_state=state)[0])(keys)
             return jnp.mean(score(runs, params))
 
@@ -107,8 +107,9 @@ def choose(
         v = values(sw.policy, sw.candidate, ids)
     else:
         n = ids.shape[0] - sw.light.count
-        light = lambda sh, pe, c, now: sw.light.candidate(sh, pe, c, now, state, params)  # noqa: E731
-        v = jnp.concatenate([values(sw.policy, sw.candidate, ids[:n]), values(sw.light.policy, light, ids[n:])])
+        v = jnp.concatenate(
+            [values(sw.policy, sw.candidate, ids[:n]), values(sw.light.policy, sw.light.candidate, ids[n:])]
+        )
     return ids[jnp.argmax(v)], v
 
 
@@ -127,12 +128,14 @@ def switching_episode(
     def period(c: Any, xs: tuple[jax.Array, jax.Array]) -> tuple[Any, tuple[jax.Array, Any]]:
         draws, i = xs
         best, _ = choose(sw, c.state, shared, per_episode, decision_key(key, i), params, c.policy_state)
-        ps = sw.candidate(shared, per_episode, best, c.policy_state)
+        ps = sw.candidate(shared, per_episode, best, c.policy_state, c.state, params)
         c = c._replace(policy_state=ps, obs=observe(sw.policy, c.state, params))
         c, tr = jax.lax.scan(scan_body(sw.policy, params, trace), c, draws)  # slots after t = K are frozen
         return c, (best, tr)
 
-    c0 = start(sw.policy, state, sw.candidate(shared, per_episode, jnp.zeros((), jnp.int32), None), params)
+    c0 = start(
+        sw.policy, state, sw.candidate(shared, per_episode, jnp.zeros((), jnp.int32), None, state, params), params
+    )
     c, (chosen, tr) = jax.lax.scan(period, c0, (u, jnp.arange(periods)))
     if trace:  # (periods, every, ...) -> the K slots of the episode
         tr = jax.tree.map(lambda x: x.reshape((periods * sw.every,) + x.shape[2:])[: params.K], tr)

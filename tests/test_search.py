@@ -99,26 +99,29 @@ def test_the_search_command_says_what_to_run_first(tmp_path, capsys):
 
 
 def test_option_search_goes_on_with_the_agent_or_starts_an_option(curves):
-    """Options (eq. 6.4): with only candidate 0 (go on) the search is the greedy option agent; the
-    candidate c > 0 forces option c - 1 at the next slot and keeps the running option otherwise."""
+    """Options (eq. 6.4): with only candidate 0 (go on) and a decision every slot the search is the
+    greedy option agent (its tour re-planned every slot, as the agent plans it); the candidate c > 0
+    forces option c - 1 at the next slot and keeps the running option otherwise."""
     from semuav_jax.actions import OPTION_HOME
     from semuav_jax.agents.options import idle
     from semuav_jax.agents.search import option_switching
+    from semuav_jax.env import reset_state
 
     cfg = DDQNConfig(hidden=(16,), actions="option", shield_margin=2.0)
     params = make_params(curves, B=25e3, K=60)
     network = q_network(params, cfg)
     net = network.init(jax.random.key(1), jnp.zeros((input_size(params, cfg),)))
     keys = jax.random.split(jax.random.PRNGKey(4), 4)
-    only = option_switching(network, cfg, 8, 1, 0)._replace(count=1)
+    only = option_switching(network, cfg, 1, 1, 0)._replace(count=1)
     m, chosen, _ = rollout_switching(only, keys, params, net)
     ref = evaluate_agent(network, net, cfg, keys, params)
     for k in ("mean_psnr", "arrived", "mission_time", "shield_share"):
         np.testing.assert_allclose(np.asarray(m[k]), ref[k], rtol=1e-6, err_msg=k)
     sw = option_switching(network, cfg, 8, 1, 2)  # continue, 2 x 6 options, home
     assert sw.count == 14
-    now = ((net, jnp.int32(-1), jnp.zeros(0, jnp.int32)), idle().replace(code=jnp.int32(4), active=jnp.bool_(True)))
-    keep, third, home = (sw.candidate(net, None, jnp.int32(c), now)[1] for c in (0, 3, 13))
+    state, tour = reset_state(jax.random.key(7), params), jnp.arange(params.N, dtype=jnp.int32)
+    now = ((net, jnp.int32(-1), tour), idle().replace(code=jnp.int32(4), active=jnp.bool_(True)))
+    keep, third, home = (sw.candidate(net, None, jnp.int32(c), now, state, params)[1] for c in (0, 3, 13))
     assert (int(keep.forced), int(keep.code)) == (-1, 4)
     assert (int(third.forced), int(third.code)) == (2, 4)
     assert int(home.forced) == OPTION_HOME
@@ -174,12 +177,13 @@ def test_option_search_with_top_simulates_the_agents_best_options(curves):
 
 
 def test_option_search_switches_to_constant_options_and_keeps_them(curves):
-    """``rules``: candidate targets L + 2 + i starts the constant option rules[i] now, along a tour
-    planned at its first slot, and chooses it at every later decision (going on, c = 0, keeps rule
-    and tour); an agent's candidate (c >= 1) drops it. A rule on the nearest device (no tour) flies
-    as the constant option does (eq. 6.4), and the light policy simulates every rule to the values
-    the agent's own policy gives."""
-    from semuav_jax.agents.options import idle
+    """``rules``: candidate targets L + 2 + i starts the constant option rules[i] now, along the
+    tour planned at the decision (eq. 6.5), and chooses it at every later decision (going on, c = 0,
+    keeps rule and tour); an agent's candidate (c >= 1), and the agent going on, take the tour
+    planned at the decision. A rule on the nearest device (no tour) flies as the constant option
+    does (eq. 6.4), and the light policy simulates every rule to the values the agent's own policy
+    gives."""
+    from semuav_jax.agents.options import idle, option_observe, planned_tour
     from semuav_jax.agents.policy import choice_policy
     from semuav_jax.agents.search import option_switching
     from semuav_jax.env import reset_state
@@ -190,32 +194,37 @@ def test_option_search_switches_to_constant_options_and_keeps_them(curves):
     params = make_params(curves, B=25e3, K=60)
     network = q_network(params, cfg)
     net = network.init(jax.random.key(1), jnp.zeros((input_size(params, cfg),)))
-    sw = option_switching(network, cfg, 8, 1, 2, None, (3, 15), params.N)  # go on, 2 x 6 options, home, 2 rules
+    sw = option_switching(network, cfg, 8, 1, 2, None, (3, 15))  # go on, 2 x 6 options, home, 2 rules
     assert sw.count == 16
-    unplanned, tour = jnp.full(params.N, -1, jnp.int32), jnp.arange(params.N, dtype=jnp.int32)
-    now = ((net, jnp.int32(-1), unplanned), idle().replace(code=jnp.int32(4), active=jnp.bool_(True)))
-    (_, rule, t), opt = sw.candidate(net, None, jnp.int32(15), now)
-    assert (int(rule), int(opt.forced), int(t.max())) == (15, 15, -1)
-    (_, rule, t), opt = sw.candidate(net, None, jnp.int32(0), ((net, rule, tour), opt.replace(forced=jnp.int32(-1))))
+    state = reset_state(jax.random.key(7), params)
+    planned = np.asarray(
+        planned_tour(option_observe(lambda s, p: jnp.zeros(0), cfg.option_margin)(state, params), params)
+    )
+    tour = jnp.asarray(planned[::-1].copy())  # a tour planned earlier, not the one planned now
+    assert sorted(planned) == list(range(params.N)) and not np.array_equal(planned, np.asarray(tour))
+    now = ((net, jnp.int32(-1), tour), idle().replace(code=jnp.int32(4), active=jnp.bool_(True)))
+    (_, rule, t), opt = sw.candidate(net, None, jnp.int32(15), now, state, params)
+    assert (int(rule), int(opt.forced)) == (15, 15) and np.array_equal(np.asarray(t), planned)
+    ruling = ((net, rule, tour), opt.replace(forced=jnp.int32(-1)))
+    (_, rule, t), opt = sw.candidate(net, None, jnp.int32(0), ruling, state, params)
     assert (int(rule), int(opt.forced)) == (15, -1) and np.array_equal(np.asarray(t), np.asarray(tour))
-    (_, rule, t), opt = sw.candidate(net, None, jnp.int32(2), ((net, rule, tour), opt))
-    assert (int(rule), int(opt.forced), int(t.max())) == (-1, 1, -1)
+    for c, forced in ((2, 1), (0, -1)):  # the agent: an option started now, or going on
+        ps = ((net, jnp.int32(-1 if c == 0 else 15), tour), ruling[1])
+        (_, rule, t), opt = sw.candidate(net, None, jnp.int32(c), ps, state, params)
+        assert (int(rule), int(opt.forced)) == (-1, forced) and np.array_equal(np.asarray(t), planned)
     keys = jax.random.split(jax.random.PRNGKey(4), 4)
-    m = rollout(sw.policy, keys, params, ((net, jnp.int32(15), unplanned), idle()), state_axes=None)[0]
+    m = rollout(sw.policy, keys, params, ((net, jnp.int32(15), tour), idle()), state_axes=None)[0]
     ref = rollout(choice_policy(lambda o, x, p: o, cfg), keys, params, (jnp.int32(15), idle()), state_axes=None)[0]
     for k in ("mean_psnr", "arrived", "mission_time"):
         np.testing.assert_array_equal(np.asarray(m[k]), np.asarray(ref[k]), err_msg=k)
-    state = reset_state(jax.random.key(7), params)
-    for s in (sw, option_switching(network, cfg, 8, 1, 2, 3, (3, 15), params.N)):
-        now = ((net, jnp.int32(-1), unplanned), idle())
+    for s in (sw, option_switching(network, cfg, 8, 1, 2, 3, (3, 15))):
+        now = ((net, jnp.int32(-1), tour), idle())
         light = choose(check_switching(s), state, net, None, jax.random.key(3), params, now)[1]
         heavy = choose(check_switching(s._replace(light=None)), state, net, None, jax.random.key(3), params, now)[1]
         assert light.shape == ((16,) if s.shortlist is None else (6,))
         np.testing.assert_array_equal(np.asarray(light), np.asarray(heavy))
     with pytest.raises(ValueError, match=r"rules must be options in \[0, 24\), got \[24\]"):
-        option_switching(network, cfg, 8, 1, 2, None, (24,), params.N)
-    with pytest.raises(ValueError, match=r"devices must be the env's N >= 1 with rules, got 0"):
-        option_switching(network, cfg, 8, 1, 2, None, (3,))
+        option_switching(network, cfg, 8, 1, 2, None, (24,))
     with pytest.raises(ValueError, match=r"light.count must be an integer in \[1, 16\), got 16"):
         check_switching(sw._replace(light=sw.light._replace(count=16)))
 
@@ -255,16 +264,15 @@ def test_curve_rules_choose_k_on_the_devices_curve(curves):
     assert int(rule_choice(jnp.int32(7), obs.x, obs, tour, params, (0.5,))) == 7
     network = q_network(params, cfg)
     net = network.init(jax.random.key(1), jnp.zeros((input_size(params, cfg),)))
-    sw = option_switching(network, cfg, 8, 1, 2, None, (3,), params.N, (0.5,))  # go on, 12 options, home, 2 rules
+    sw = option_switching(network, cfg, 8, 1, 2, None, (3,), (0.5,))  # go on, 12 options, home, 2 rules
     assert sw.count == 16 and sw.light.count == 2
-    unplanned = jnp.full(params.N, -1, jnp.int32)
-    now = ((net, jnp.int32(-1), unplanned), idle().replace(code=jnp.int32(4), active=jnp.bool_(True)))
-    (_, rule, _), opt = sw.candidate(net, None, jnp.int32(15), now)
+    now = ((net, jnp.int32(-1), tour), idle().replace(code=jnp.int32(4), active=jnp.bool_(True)))
+    (_, rule, _), opt = sw.candidate(net, None, jnp.int32(15), now, state, params)
     assert (int(rule), int(opt.forced), bool(opt.active)) == (OPTION_HOME + 1, -1, False)
     fresh = reset_state(jax.random.key(7), params)
-    now = ((net, jnp.int32(-1), unplanned), idle())
+    now = ((net, jnp.int32(-1), tour), idle())
     light = choose(check_switching(sw), fresh, net, None, jax.random.key(3), params, now)[1]
     heavy = choose(check_switching(sw._replace(light=None)), fresh, net, None, jax.random.key(3), params, now)[1]
     np.testing.assert_array_equal(np.asarray(light), np.asarray(heavy))
     with pytest.raises(ValueError, match=r"curves must be lambdas >= 0"):
-        option_switching(network, cfg, 8, 1, 2, None, (3,), params.N, (-1.0,))
+        option_switching(network, cfg, 8, 1, 2, None, (3,), (-1.0,))

@@ -64,7 +64,7 @@ def switch_expert(config: DDQNConfig) -> Switching:
     constant = choice_policy(lambda option, x, params: option, config)
     ids = jnp.asarray(SWITCH_OPTIONS, jnp.int32)
 
-    def candidate(_: Any, __: Any, c: jax.Array, now: Any) -> tuple[jax.Array, Option]:
+    def candidate(_: Any, __: Any, c: jax.Array, now: Any, *state_params: Any) -> tuple[jax.Array, Option]:
         return ids[c], idle() if now is None else now[1]
 
     return Switching(constant, candidate, len(SWITCH_OPTIONS), config.demo_every)

@@ -32,7 +32,7 @@ if TYPE_CHECKING:
 SEARCH_EVERY = 8  # slots (4 s) between two decisions
 SEARCH_SAMPLES = 1  # delay draws per candidate and decision
 SEARCH_TARGETS = OPTION_TARGETS  # option agents: the targets j (eq. 6.4) whose options are simulated
-SEARCH_TOP = None  # option agents: simulate only the agent's TOP best options by Q (None: every one)
+SEARCH_TOP = 4  # option agents: simulate only the agent's TOP best options by Q (None: every one)
 SEARCH_RULES = SWITCH_OPTIONS  # option agents: the constant options the search may switch to (eq. 7.15)
 SEARCH_CURVES = (0.25, 0.5, 1.0)  # option agents: lambda (dB per second of stay) of the curve rules
 SEARCH_BLOCK = 256  # layouts per call when a table maps the search over its layouts (1.4x faster than 64)
@@ -43,7 +43,7 @@ def search_switching(network: QNetwork, config: DDQNConfig, every: int, samples:
     """Candidates: c = 0 the agent; c = 1 .. A its action c - 1 for ``every`` slots, then the agent."""
     policy = forced(greedy_policy(network, config))
 
-    def candidate(net: Any, _: Any, c: jax.Array, now: Any = None) -> Forced:
+    def candidate(net: Any, _: Any, c: jax.Array, now: Any = None, *state_params: Any) -> Forced:
         return Forced(net, jnp.maximum(c - 1, 0).astype(jnp.int32), jnp.where(c > 0, every, 0).astype(jnp.int32))
 
     return Switching(policy, candidate, A + 1, every, samples)
@@ -102,19 +102,19 @@ def option_switching(
     targets: int,
     top: int | None = None,
     rules: tuple[int, ...] = (),
-    devices: int = 0,
     curves: tuple[float, ...] = (),
 ) -> Switching:
     """Candidates: c = 0 what runs going on (the agent, or the rule it follows); c = 1 .. targets L
     its option c - 1 (targets j < ``targets`` of eq. 6.4, every k) started now, the agent after it;
     c = targets L + 1, home; then, for each option of ``rules``, that option started now and chosen
-    again at every option's end, along the tour planned now (eq. 6.5; a dwell rule in option space,
-    e.g. TSP-dwell at k), until a decision switches (policy switching over those rules and the agent,
-    eq. 7.15; the rules simulated by :func:`rule_policy`). With ``top``, a decision simulates c = 0,
-    the ``top`` options (home included) with the highest Q at the decision, and every rule. Policy
-    state: ((weights, the rule followed or -1 for the agent, its tour), the running option);
-    ``devices``: the env's N (the length of a tour), needed with ``rules``; ``curves``: the lambdas of
-    curve rules (:func:`rule_choice`), candidates after the constant ones."""
+    again at every option's end (a dwell rule in option space, e.g. TSP-dwell at k), until a decision
+    switches (policy switching over those rules and the agent, eq. 7.15; the rules simulated by
+    :func:`rule_policy`). Options follow the tour (eq. 6.5) planned at the decision, not every slot:
+    the agent's re-planned at each decision, a rule's when it starts. With ``top``, a decision
+    simulates c = 0, the ``top`` options (home included) with the highest Q at the decision, and
+    every rule. Policy state: ((weights, the rule followed or -1 for the agent, the tour), the
+    running option); ``curves``: the lambdas of curve rules (:func:`rule_choice`), candidates after
+    the constant ones."""
     last = targets * len(OPTION_K) + 1
     bad = [r for r in rules if not (isinstance(r, int) and 0 <= r < OPTION_HOME)]
     if bad:
@@ -124,7 +124,6 @@ def option_switching(
     rules = rules + tuple(OPTION_HOME + 1 + i for i in range(len(curves)))
     ids = jnp.asarray(rules + (0,), jnp.int32)
     agent = greedy_policy(network, config)
-    unplanned = jnp.full(devices if rules else 0, -1, jnp.int32)  # a rule plans its tour at its first slot
 
     def observe(state: EnvState, params: EnvParams) -> tuple[OptionObs, jax.Array]:
         return agent.observe(state, params), curve_gains(state, params)
@@ -132,13 +131,9 @@ def option_switching(
     def act(ps: tuple[tuple[Any, jax.Array, jax.Array], Option], obs: Any, params: EnvParams) -> tuple:
         (net, rule, tour), opt = ps
         obs, gains = obs if curves else (obs, None)
-        now = planned_tour(obs, params)
         agent_choice = jnp.argmax(network.apply(net, obs.x))
-        if rules:
-            tour = jnp.where(tour[0] < 0, now, tour)
-            now = jnp.where(rule >= 0, tour, now)
-        choice = jnp.where(rule >= 0, rule_choice(rule, gains, obs, now, params, curves), agent_choice)
-        opt = step_option(opt, choice, obs, params, now)
+        choice = jnp.where(rule >= 0, rule_choice(rule, gains, obs, tour, params, curves), agent_choice)
+        opt = step_option(opt, choice, obs, params, tour)
         return opt.code, ((net, rule, tour), opt)
 
     def shortlist(net: Any, _: Any, state: Any, now: Any, params: EnvParams) -> jax.Array:
@@ -150,23 +145,21 @@ def option_switching(
     def option_of(c: jax.Array) -> jax.Array:
         return jnp.where(c > last, ids[jnp.clip(c - last - 1, 0, len(rules))], jnp.where(c == last, OPTION_HOME, c - 1))
 
-    def candidate(net: Any, _: Any, c: jax.Array, now: Any) -> tuple:
-        (_, rule, tour), opt = ((None, jnp.int32(-1), unplanned), idle()) if now is None else now
+    def candidate(net: Any, _: Any, c: jax.Array, now: Any, state: EnvState, params: EnvParams) -> tuple:
+        planned = planned_tour(simulated.observe(state, params), params)
+        (_, rule, tour), opt = ((None, jnp.int32(-1), planned), idle()) if now is None else now
         option = option_of(c)
         rule = jnp.where(c > last, option, jnp.where(c > 0, -1, rule)).astype(jnp.int32)
-        tour = jnp.where(c > 0, unplanned, tour)
+        tour = jnp.where((c > 0) | (rule < 0), planned, tour)  # a rule going on keeps the tour it started on
         return (net, rule, tour), _switch_to(opt, option, c > 0)
 
     def light(net: Any, _: Any, c: jax.Array, now: Any, state: EnvState, params: EnvParams) -> tuple:
-        """Candidate c > last as :func:`rule_policy` flies it: its tour planned from ``state``."""
-        option, opt = option_of(c), idle() if now is None else now[1]
-        tour = planned_tour(simulated.observe(state, params), params)
-        return (option, tour), _switch_to(opt, option, jnp.ones((), bool))
+        """Candidate c > last as :func:`rule_policy` flies it."""
+        (_, option, tour), opt = candidate(net, _, c, now, state, params)
+        return (option, tour), opt
 
     if top is not None and not 1 <= top <= last:
         raise ValueError(f"top must be in [1, {last}] (the options of {targets} targets and home), got {top!r}")
-    if rules and not (isinstance(devices, int) and devices >= 1):
-        raise ValueError(f"devices must be the env's N >= 1 with rules, got {devices!r}")
     simulated = rule_policy(config, curves)
     policy = Policy(act=act, mode=config.actions, observe=observe if curves else agent.observe, shield=agent.shield)
     return Switching(
@@ -197,7 +190,7 @@ def agent_switching(
     if config.uses_options:
         rules = SEARCH_RULES if rules is None else tuple(rules)
         curves = SEARCH_CURVES if curves is None else tuple(curves)
-        return option_switching(network, config, every, samples, targets, top, rules, int(params.N), curves)
+        return option_switching(network, config, every, samples, targets, top, rules, curves)
     if rules or curves:
         raise ValueError(f"rules are constant options: the agent must choose options, not {config.actions!r} actions")
     return search_switching(network, config, every, samples, num_actions(params, config))

@@ -82,8 +82,8 @@ def compare_search(
     if missing:
         raise ValueError(f"{source} has no dwell tuning at B = {missing}")
     params = run.env_params()
-    rule_ids = None if rules else ()  # None: the agent's own (SEARCH_RULES, SEARCH_CURVES for option agents)
-    sw = check_switching(agent_switching(run.agent, params, every, 1, targets, top, rule_ids, rule_ids))
+    constant = curve = None if rules else ()  # None: the agent's own (SEARCH_RULES, SEARCH_CURVES for option agents)
+    sw = check_switching(agent_switching(run.agent, params, every, 1, targets, top, constant, curve))
     network = q_network(params, run.agent)
     seed = VALIDATION_SEED if validation else TEST_SEED
     keys = episode_keys(seed, episodes)
@@ -111,7 +111,7 @@ def compare_search(
             t0 = time.perf_counter()
             m = map_episodes(
                 lambda k, net=net, pb=pb: search_metrics(
-                    net, run.agent, k, pb, every, 1, targets, top, rule_ids, rule_ids
+                    net, run.agent, k, pb, every, 1, targets, top, constant, curve
                 )[0],
                 keys,
                 block=SEARCH_BLOCK,
