@@ -237,8 +237,9 @@ def test_curve_rules_choose_k_on_the_devices_curve(curves):
     values the agent's own policy gives; lambdas must be floats >= 0."""
     from semuav_jax import channel
     from semuav_jax.actions import OPTION_HOME, OPTION_K
+    from semuav_jax.agents.features import curve_gains
     from semuav_jax.agents.options import idle, option_observe
-    from semuav_jax.agents.search import curve_gains, option_switching, rule_choice
+    from semuav_jax.agents.search import option_switching, rule_choice
     from semuav_jax.env import reset_state
     from semuav_jax.lookahead import check_switching, choose
 

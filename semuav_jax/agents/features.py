@@ -98,6 +98,17 @@ def waypoint_features(state: EnvState, params: EnvParams) -> jax.Array:
     return jnp.concatenate([glob, dev.reshape(-1)]).astype(jnp.float32)
 
 
+def curve_gains(state: EnvState, params: EnvParams) -> jax.Array:
+    """(N, len(OPTION_K)): the PSNR device n's curve adds up to k symbols, (C[i_n, min(k, M)] - phi_n)+ (dB)."""
+    k = jnp.minimum(jnp.asarray(OPTION_K), params.M).astype(jnp.int32)
+    return jnp.maximum(params.C[state.dev_img[:, None], k[None]] - state.phi[:, None], 0.0)
+
+
+def stay_seconds(k: jax.Array, m: jax.Array, params: EnvParams) -> jax.Array:
+    """Seconds a hover takes to bring a device from m to min(k, M) symbols: (min(k, M) - m)+ beta / R(0)."""
+    return jnp.maximum(jnp.minimum(k, params.M) - m, 0.0) * params.beta / channel.rest_rate(params)
+
+
 def option_features(state: EnvState, params: EnvParams, margin: float) -> jax.Array:
     """:func:`waypoint_features`, then for each option c < OPTION_HOME (eq. 6.4) of the device n it
     would serve: the PSNR it adds, C[i_n, k] - phi_n (by the range of C; the curve is what the BS
@@ -111,11 +122,10 @@ def option_features(state: EnvState, params: EnvParams, margin: float) -> jax.Ar
     codes, ks = jax.vmap(lambda c: option_code(c, state.m, fits, order, tour, params))(jnp.arange(OPTION_HOME))
     has = codes >= 0
     n = jnp.maximum(codes, 0)
-    k = jnp.minimum(jnp.where(has, ks, 0.0), params.M)
     T = params.K * params.tau
     span = jnp.maximum(jnp.max(params.C) - jnp.min(params.C), 1e-6)
-    gain = jnp.maximum(params.C[state.dev_img[n], k.astype(jnp.int32)] - state.phi[n], 0.0) / span
-    stay = jnp.maximum(k - state.m[n], 0.0) * params.beta / channel.rest_rate(params)
+    gain = curve_gains(state, params)[n, jnp.arange(OPTION_HOME) % len(OPTION_K)] / span
+    stay = stay_seconds(jnp.where(has, ks, 0.0), state.m[n], params)
     via = jax.vmap(lambda p: time_via(state.q, state.v, p, DWELL_SPEED, params, stop=True))(state.dev_pos[n])
     slack = ((params.K - state.t) * params.tau - via - stay) / T
     block = jnp.stack([gain, stay / T, slack, jnp.ones_like(gain)], axis=-1) * has[:, None]

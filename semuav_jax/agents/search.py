@@ -14,9 +14,9 @@ from typing import TYPE_CHECKING, Any
 import jax
 import jax.numpy as jnp
 
-from semuav_jax import channel
 from semuav_jax.actions import OPTION_HOME, OPTION_K, OPTION_TARGETS, option_code
 from semuav_jax.agents.demos import SWITCH_OPTIONS
+from semuav_jax.agents.features import curve_gains, stay_seconds
 from semuav_jax.agents.network import num_actions, q_network
 from semuav_jax.agents.options import Option, OptionObs, idle, option_observe, planned_tour, step_option
 from semuav_jax.agents.policy import agent_input, agent_shield, greedy_policy
@@ -49,24 +49,18 @@ def search_switching(network: QNetwork, config: DDQNConfig, every: int, samples:
     return Switching(policy, candidate, A + 1, every, samples)
 
 
-def curve_gains(state: EnvState, params: EnvParams) -> jax.Array:
-    """(N, len(OPTION_K)): the PSNR device n's curve adds up to k symbols, (C[i_n, k] - phi_n)+ (dB)."""
-    k = jnp.minimum(jnp.asarray(OPTION_K), params.M).astype(jnp.int32)
-    return jnp.maximum(params.C[state.dev_img[:, None], k[None]] - state.phi[:, None], 0.0)
-
-
 def rule_choice(
     rule: jax.Array, gains: jax.Array | None, obs: OptionObs, tour: jax.Array, params: EnvParams, curves: tuple
 ) -> jax.Array:
     """The option rule ``rule`` chooses: a constant option (< OPTION_HOME) itself; curve rule
     OPTION_HOME + 1 + i the first device along ``tour`` with k maximizing gain - curves[i] x stay
-    over OPTION_K (gain: :func:`curve_gains`, stay: (k - m_n)+ beta / R(0) seconds)."""
+    over OPTION_K (gain: ``features.curve_gains``, stay: ``features.stay_seconds``)."""
     if not curves:
         return rule
     L = len(OPTION_K)
     codes, ks = jax.vmap(lambda c: option_code(c, obs.m, obs.fits, obs.order, tour, params))(jnp.arange(L))
     n = jnp.maximum(codes, 0)
-    stay = jnp.maximum(ks - obs.m[n], 0.0) * params.beta / channel.rest_rate(params)
+    stay = stay_seconds(ks, obs.m[n], params)
     lam = jnp.asarray(curves, jnp.float32)[jnp.clip(rule - OPTION_HOME - 1, 0, len(curves) - 1)]
     score = jnp.where(codes >= 0, gains[n, jnp.arange(L)] - lam * stay, -jnp.inf)
     return jnp.where(rule < OPTION_HOME, rule, jnp.argmax(score)).astype(jnp.int32)
