@@ -139,6 +139,23 @@ def test_an_option_runs_until_its_device_holds_k_symbols(state, params):
     assert bool(running(home, obs(state.replace(m=jnp.full(10, 256.0))), params))
 
 
+def test_an_option_ends_when_its_device_stops_fitting(state, params):
+    """Eq. 7.9: short of k, the option still ends once its device no longer fits (the dwell rules'
+    test); the next decision chooses among the devices that fit, the home option never ends."""
+    obs = lambda s, fits: OptionObs(jnp.zeros(3), s.m, fits, device_order(s, params), s.q, s.dev_pos)
+    near = TOUR_TARGETS * L
+    all_fit = jnp.ones(10, bool)
+    opt = step_option(idle(), jnp.int32(near + L + 1), obs(state, all_fit), params)  # device 7 until 24
+    at7 = state.replace(q=state.dev_pos[7], m=state.m.at[7].set(10.0))
+    assert bool(running(opt, obs(at7, all_fit), params))
+    gone = all_fit.at[7].set(False)
+    assert not bool(running(opt, obs(at7, gone), params))
+    nxt = step_option(opt, jnp.int32(near), obs(at7, gone), params)
+    assert bool(nxt.decided) and int(nxt.code) == 5  # from device 7, 5 is the nearest that fits short of 16
+    home = step_option(idle(), jnp.int32(OPTION_HOME), obs(state, all_fit), params)
+    assert bool(running(home, obs(state, jnp.zeros(10, bool)), params))
+
+
 def test_semi_mdp_transitions_by_hand():
     """One env, decisions at slots 0 and 2, the episode ends after slot 3: the first option's
     transition is (x0, a0, r0 + g r1, x2, not done, g^2), the second (x2, a1, r2 + g r3, x4, done, g^2);

@@ -120,22 +120,25 @@ def test_training_stores_shielded_actions(params):
     assert out[None] < 0.5
 
 
-def test_config_rejects_negative_margin():
-    with pytest.raises(ValueError, match="shield_margin"):
-        DDQNConfig(shield_margin=-1.0)
+@pytest.mark.parametrize("bad", [float("nan"), float("inf"), float("-inf")])
+def test_config_rejects_a_margin_that_is_not_finite(bad):
+    with pytest.raises(ValueError, match="shield_margin must be finite"):
+        DDQNConfig(shield_margin=bad)
 
 
-def test_waypoint_shield_sends_home_exactly_when_late(params):
-    """Waypoint actions: HOME from the slot where the time left falls to eq. 7.5 at v_max + margin."""
+@pytest.mark.parametrize("margin", [2.0, -2.0])
+def test_waypoint_shield_sends_home_exactly_when_late(params, margin):
+    """Waypoint actions: HOME from the slot where the time left falls to eq. 7.5 at v_max + margin
+    (a negative margin: that many seconds later)."""
     from semuav_jax.actions import HOME, NUM_WAYPOINT_ACTIONS
     from semuav_jax.agents.shield import late, waypoint_shield
 
     s = reset_state(jax.random.key(0), params).replace(q=jnp.array([600.0, 200.0]), v=jnp.array([3.0, -4.0]))
-    need = float(time_home(s.q, s.v, params.v_max, params)) + 2.0
+    need = float(time_home(s.q, s.v, params.v_max, params)) + margin
     t_edge = int(np.ceil(params.K - 1 - need / float(params.tau)))  # first slot with (K - t - 1) tau <= need
     for t, want_home in ((t_edge - 1, False), (t_edge, True)):
         st = s.replace(t=jnp.int32(t))
-        assert bool(late(st, params, 2.0)) == want_home
+        assert bool(late(st, params, margin)) == want_home
         for a in range(NUM_WAYPOINT_ACTIONS):
-            assert int(waypoint_shield(jnp.int32(a), st, params, 2.0)) == (HOME if want_home else a)
+            assert int(waypoint_shield(jnp.int32(a), st, params, margin)) == (HOME if want_home else a)
     assert int(waypoint_shield(jnp.int32(0), s.replace(t=jnp.int32(params.K - 1)), params, None)) == 0

@@ -47,7 +47,9 @@ class DDQNConfig:
     hidden: tuple = option((128, 128, 64), "hidden layer widths of the Q-network MLP")
     dueling: bool = option(False, "dueling head: Q = V + A - mean(A) (Wang et al. 2016) instead of one linear layer")
     sorted_devices: bool = option(True, "table actions: sort device blocks nearest first and add tanh offsets")
-    shield_margin: float | None = option(2.0, "seconds of slack of the BS's return-home shield; none: no shield")
+    shield_margin: float | None = option(
+        2.0, "seconds the BS's return-home shield keeps beyond eq. 7.5 (< 0 trusts its over-estimate); none: no shield"
+    )
     actions: str = option(
         "waypoint",
         "waypoint (eq. 6.2: device, speed or hover, home), dwell (eq. 6.3: those and stay-until-k over the "
@@ -136,8 +138,6 @@ class DDQNConfig:
             raise ValueError(f"eps_decay_frac must be in (0, 1], got {self.eps_decay_frac}")
         if not 0.0 <= self.gamma <= 1.0:
             raise ValueError(f"gamma must be in [0, 1], got {self.gamma}")
-        if self.shield_margin is not None and not self.shield_margin >= 0:
-            raise ValueError(f"shield_margin must be >= 0 seconds or None (no shield), got {self.shield_margin}")
         if self.actions not in ACTION_MODES:
             raise ValueError(f"actions must be one of {ACTION_MODES}, got {self.actions!r}")
         if self.bandwidth_range is not None:
@@ -155,8 +155,8 @@ class DDQNConfig:
         for name in ("lr", "reward_scale", "max_grad_norm", "demo_weight", "demo_margin"):
             if not 0 < getattr(self, name) < float("inf"):  # NaN fails too
                 raise ValueError(f"{name} must be finite and > 0, got {getattr(self, name)}")
-        if self.shield_margin is not None and self.shield_margin == float("inf"):
-            raise ValueError("shield_margin must be finite (none: no shield)")
+        if self.shield_margin is not None and not abs(self.shield_margin) < float("inf"):  # NaN fails too
+            raise ValueError(f"shield_margin must be finite seconds (none: no shield), got {self.shield_margin}")
         if self.num_chunks < 1:
             raise ValueError(
                 f"total_steps ({self.total_steps}) is less than one chunk "

@@ -77,10 +77,12 @@ def option_observe(features: Callable, margin: float) -> Callable:
 
 
 def running(opt: Option, obs: OptionObs, params: EnvParams) -> jax.Array:
-    """Whether ``opt`` goes on: it runs, and it is the home option or its device holds fewer than
-    min(k, M) symbols."""
-    m = obs.m[jnp.maximum(opt.code, 0)]
-    return opt.active & ((opt.code == HOME_CODE) | ((m < opt.k - 1e-3) & (m < params.M - 1e-3)))
+    """Whether ``opt`` goes on: it runs, and it is the home option, or its device holds fewer than
+    min(k, M) symbols and still fits (eq. 7.9: a dwell rule leaves a device there too)."""
+    n = jnp.maximum(opt.code, 0)
+    m = obs.m[n]
+    serving = (m < opt.k - 1e-3) & (m < params.M - 1e-3) & obs.fits[n]
+    return opt.active & ((opt.code == HOME_CODE) | serving)
 
 
 def planned_tour(obs: OptionObs, params: EnvParams) -> jax.Array:
