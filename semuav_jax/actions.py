@@ -138,6 +138,13 @@ def option_code(
     return jnp.where(home, HOME_CODE, n).astype(jnp.int32), jnp.where(home, jnp.inf, k)
 
 
+def option_codes(
+    count: int, m: ArrayLike, fits: ArrayLike, order: ArrayLike, tour: ArrayLike, params: EnvParams
+) -> tuple[jax.Array, jax.Array]:
+    """:func:`option_code` of the options 0 .. ``count`` - 1: codes (count,) and symbol targets (count,)."""
+    return jax.vmap(lambda c: option_code(c, m, fits, order, tour, params))(jnp.arange(count))
+
+
 def option_accel(code: ArrayLike, state: EnvState, params: EnvParams) -> jax.Array:
     """The command of an option's code: cruise at DWELL_SPEED to device ``code`` and stay at rest over
     it (eq. 7.3 with STOP_BRAKE), or, for HOME_CODE, fly home at v_max (eq. 7.1)."""

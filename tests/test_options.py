@@ -16,6 +16,7 @@ from semuav_jax.actions import (
     device_order,
     option_accel,
     option_code,
+    option_codes,
 )
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.options import OptionObs, idle, running, step_option
@@ -54,6 +55,10 @@ def test_option_codes_by_hand(state, params):
         assert (int(code), float(kk)) == (n, k), choice
     code, kk = option_code(jnp.int32(OPTION_HOME), m, fits, order, tour, params)
     assert int(code) == HOME_CODE and float(kk) == np.inf
+    codes, ks = option_codes(NUM_OPTIONS, m, fits, order, tour, params)  # the vmap is the loop
+    for choice, (n, k) in want.items():
+        assert (int(codes[choice]), float(ks[choice])) == (n, k), choice
+    assert int(codes[OPTION_HOME]) == HOME_CODE and codes.shape == ks.shape == (NUM_OPTIONS,)
     few = jnp.full(10, 256.0).at[4].set(0.0).at[6].set(0.0)  # devices 4 and 6 short
     assert int(option_code(jnp.int32(L), few, fits, order, tour, params)[0]) == 4  # 6 first on the tour, then 4
     assert (

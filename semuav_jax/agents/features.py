@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 
 from semuav_jax import channel
-from semuav_jax.actions import DWELL_SPEED, OPTION_HOME, OPTION_K, device_order, option_code, option_fits
+from semuav_jax.actions import DWELL_SPEED, OPTION_HOME, OPTION_K, device_order, option_codes, option_fits
 from semuav_jax.control import time_home, time_via
 from semuav_jax.observation import DEVICE_FEATURES, GLOBAL_FEATURES
 from semuav_jax.params import EnvParams
@@ -119,7 +119,7 @@ def option_features(state: EnvState, params: EnvParams, margin: float) -> jax.Ar
     fits = option_fits(state, params, margin)
     tour = tour_order(state.q, state.dev_pos, fits & (state.m < OPTION_K[0] - 1e-3), params.q_fin)
     order = device_order(state, params)
-    codes, ks = jax.vmap(lambda c: option_code(c, state.m, fits, order, tour, params))(jnp.arange(OPTION_HOME))
+    codes, ks = option_codes(OPTION_HOME, state.m, fits, order, tour, params)
     has = codes >= 0
     n = jnp.maximum(codes, 0)
     T = params.K * params.tau

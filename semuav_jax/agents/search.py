@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import jax
 import jax.numpy as jnp
 
-from semuav_jax.actions import OPTION_HOME, OPTION_K, OPTION_TARGETS, option_code
+from semuav_jax.actions import OPTION_HOME, OPTION_K, OPTION_TARGETS, option_codes
 from semuav_jax.agents.demos import SWITCH_OPTIONS
 from semuav_jax.agents.features import curve_gains, stay_seconds
 from semuav_jax.agents.network import num_actions, q_network
@@ -58,7 +58,7 @@ def rule_choice(
     if not curves:
         return rule
     L = len(OPTION_K)
-    codes, ks = jax.vmap(lambda c: option_code(c, obs.m, obs.fits, obs.order, tour, params))(jnp.arange(L))
+    codes, ks = option_codes(L, obs.m, obs.fits, obs.order, tour, params)
     n = jnp.maximum(codes, 0)
     stay = stay_seconds(ks, obs.m[n], params)
     lam = jnp.asarray(curves, jnp.float32)[jnp.clip(rule - OPTION_HOME - 1, 0, len(curves) - 1)]
