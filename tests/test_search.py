@@ -150,6 +150,12 @@ def test_the_search_table_names_the_layouts_it_used():
         # bound - agent = (bound - search) + (search - agent), layout by layout, so in the mean too
         np.testing.assert_allclose(s["agent bound gap"][0], s["bound gap"][0] + s["minus agent"][0], atol=1e-4)
     assert "| bound − search | bound − agent |" in markdown(r)
+    light = compare_search(ROOT / "semuav_jax" / "data" / "agent", episodes=2, bandwidths=(25e3,), validation=True,
+                           references=False, log=lambda _: None)  # fmt: skip
+    assert light["versus"] == ["agent"] and light["rows"][0]["references"] == {}
+    for s, full in zip(light["rows"][0]["seeds"], row["seeds"]):  # the same flights, fewer columns
+        assert s["mean_psnr"] == full["mean_psnr"] and "bound gap" not in s and "minus tsp-dwell" not in s
+    assert "search − agent | s |" in markdown(light) and "tsp-dwell" not in markdown(light)
 
 
 def test_option_search_with_top_simulates_the_agents_best_options(curves):

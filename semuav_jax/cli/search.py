@@ -1,7 +1,7 @@
 """The agent with search at the BS against the reactive agent and the references
 
 ``semuav-search RUN_FOLDER [--episodes 100] [--every 8] [--targets 4] [--top M] [--no-rules] [--validation]
-[--tuning EVAL_JSON] [--json out.json]``: the table of ``semuav_jax.experiments.search`` for a
+[--no-references] [--tuning EVAL_JSON] [--json out.json]``: the table of ``semuav_jax.experiments.search`` for a
 finished train.py run folder, the dwell knobs from its eval.json (or ``--tuning``'s; docs/ddqn.md,
 "The agent with search"), printed as Markdown.
 """
@@ -31,6 +31,11 @@ def main(argv: list[str] | None = None) -> int:
         help="option agents: simulate the agent's own options only, no constant options or curve rules",
     )
     ap.add_argument("--validation", action="store_true", help="validation layouts (keys.VALIDATION_SEED): for choosing")
+    ap.add_argument(
+        "--no-references",
+        action="store_true",
+        help="against the agent alone: no reference flights, no bound (for choosing the knobs with --validation)",
+    )
     ap.add_argument("--tuning", help="the eval.json whose dwell knobs to use (default: the folder's own)")
     ap.add_argument("--json", help="write the numbers here (atomically)")
     args = ap.parse_args(argv)
@@ -44,6 +49,7 @@ def main(argv: list[str] | None = None) -> int:
             rules=not args.no_rules,
             validation=args.validation,
             tuning=args.tuning,
+            references=not args.no_references,
         )
     except ValueError as e:
         ap.error(str(e))

@@ -44,6 +44,7 @@ from semuav_jax.sharding import map_episodes
 from semuav_jax.stats import mean_ci, pm
 
 VERSUS = ("agent", "tsp-dwell", "dwell-switch", "exact planner")
+BOUND_GAPS = ("bound gap", "agent bound gap")
 
 
 def compare_search(
@@ -56,13 +57,15 @@ def compare_search(
     rules: bool = True,
     validation: bool = False,
     tuning: str | os.PathLike | None = None,
+    references: bool = True,
     log: Callable[[str], None] = print,
 ) -> dict:
     """Every number of the table (JSON-ready); the dwell knobs come from ``folder``'s eval.json, or
     from the eval.json ``tuning`` of another run of the same env. ``targets``, ``top``: the candidate
     devices of an option agent's search and how many of their options it simulates; ``rules``: whether
     it may also switch to the constant options of ``SEARCH_RULES`` and the curve rules of ``SEARCH_CURVES``
-    (``agents/search.py``)."""
+    (``agents/search.py``). ``references`` False: the agent with search against the agent alone, no
+    reference flights and no bound (for choosing the knobs on validation layouts)."""
     if episodes < 2:
         raise ValueError(f"episodes must be >= 2 (an interval needs two), got {episodes}")
     run, nets = load_run(folder)
@@ -87,15 +90,18 @@ def compare_search(
     network = q_network(params, run.agent)
     seed = VALIDATION_SEED if validation else TEST_SEED
     keys = episode_keys(seed, episodes)
-    rank = np.asarray(tsp_ranks(keys, params, workers=run.workers))
+    versus, gaps = (VERSUS, BOUND_GAPS) if references else (VERSUS[:1], ())
+    rank = np.asarray(tsp_ranks(keys, params, workers=run.workers)) if references else None
     seeds = jax.tree.leaves(nets)[0].shape[0]
     agent = seed_metrics(network, nets, run.agent, keys, params, bandwidths)
-    flown = None if validation else _cached_flights(params, saved, episodes)
+    flown = None if validation or not references else _cached_flights(params, saved, episodes)
     rows = []
     for j, b in enumerate(bandwidths):
         pb = params.replace(B=float(b))
         (v_c, k_star, margin), (sv, sm) = knobs[float(b)]
-        if flown is not None and float(b) in flown:
+        if not references:
+            refs = {}
+        elif flown is not None and float(b) in flown:
             refs = flown[float(b)]
         else:
             refs = {
@@ -103,9 +109,10 @@ def compare_search(
                 "dwell-switch": switch_metrics(keys, pb, sv, sm, rank),
                 "exact planner": receding.fly(keys, pb, workers=run.workers)[0],
             }
-        bound = certified_bound(keys, pb)
         row = {"B": float(b), "seeds": [], "references": {k: mean_ci(m["mean_psnr"]) for k, m in refs.items()}}
-        row["references"]["bound"] = mean_ci(bound)
+        if references:
+            bound = certified_bound(keys, pb)
+            row["references"]["bound"] = mean_ci(bound)
         for s in range(seeds):
             net = jax.tree.map(lambda x, s=s: x[s], nets)
             t0 = time.perf_counter()
@@ -123,20 +130,21 @@ def compare_search(
                 "agent": mean_ci(own["mean_psnr"]),
                 "arrived": float(np.mean(m["arrived"])),
                 "wall_s": time.perf_counter() - t0,
-                **{f"minus {n}": mean_ci(m["mean_psnr"] - base[n]) for n in VERSUS},
-                "bound gap": mean_ci(bound - m["mean_psnr"]),
-                "agent bound gap": mean_ci(bound - own["mean_psnr"]),
+                **{f"minus {n}": mean_ci(m["mean_psnr"] - base[n]) for n in versus},
             }
+            if references:
+                res["bound gap"] = mean_ci(bound - m["mean_psnr"])
+                res["agent bound gap"] = mean_ci(bound - own["mean_psnr"])
             row["seeds"].append(res)
             log(
                 f"B = {b / 1e3:g} kHz, seed {s}: search {res['mean_psnr'][0]:.2f} dB, agent {res['agent'][0]:.2f}, "
-                + ", ".join(f"− {n} {res['minus ' + n][0]:+.2f}" for n in VERSUS)
+                + ", ".join(f"− {n} {res['minus ' + n][0]:+.2f}" for n in versus)
                 + f" ({res['wall_s']:.0f} s)"
             )
         row["search"] = (
             {k: mean_ci([x[k][0] for x in row["seeds"]]) for k in ("mean_psnr", "agent")}
-            | {f"minus {n}": mean_ci([x[f"minus {n}"][0] for x in row["seeds"]]) for n in VERSUS}
-            | {g: mean_ci([x[g][0] for x in row["seeds"]]) for g in ("bound gap", "agent bound gap")}
+            | {f"minus {n}": mean_ci([x[f"minus {n}"][0] for x in row["seeds"]]) for n in versus}
+            | {g: mean_ci([x[g][0] for x in row["seeds"]]) for g in gaps}
         )
         rows.append(row)
     return {
@@ -148,6 +156,7 @@ def compare_search(
         "top": top if run.agent.uses_options else None,
         "rules": sw.light.count if sw.light else 0,
         "seeds": seeds,
+        "versus": list(versus),
         "rows": rows,
     }
 
@@ -171,8 +180,10 @@ def _cached_flights(params: EnvParams, saved: dict, episodes: int) -> dict[float
 
 
 def markdown(r: dict) -> str:
-    head = " | ".join(f"search − {n}" for n in VERSUS)
-    gaps = (*(f"minus {n}" for n in VERSUS), "bound gap", "agent bound gap")
+    versus = r.get("versus", VERSUS)
+    bound = all(g in row["search"] for row in r["rows"] for g in BOUND_GAPS)
+    head = " | ".join(f"search − {n}" for n in versus) + (" | bound − search | bound − agent" if bound else "")
+    gaps = (*(f"minus {n}" for n in versus), *(BOUND_GAPS if bound else ()))
     cells = lambda s: [f"{s[c][0]:+.2f} {pm(s[c][1])}" for c in gaps]
     knobs = f"a decision every {r['every']} slots" + (f", {r['targets']} target devices" if r["targets"] else "")
     knobs += f", the agent's {r['top']} best options by Q" if r.get("top") else ""
@@ -181,8 +192,8 @@ def markdown(r: dict) -> str:
         f"First {r['episodes']} {r['layouts']} layouts (seed {r['layout_seed']}); {knobs}; {r['seeds']} seeds, "
         "each paired per layout; across seeds: mean of the seeds' means ± t interval.",
         "",
-        f"| B (kHz) | seed | agent with search (dB) | agent (dB) | {head} | bound − search | bound − agent | s |",
-        "|---" * (7 + len(VERSUS)) + "|",
+        f"| B (kHz) | seed | agent with search (dB) | agent (dB) | {head} | s |",
+        "|---" * (5 + len(gaps)) + "|",
     ]
     for row in r["rows"]:
         for i, s in enumerate(row["seeds"]):
