@@ -9,7 +9,8 @@ A :class:`Policy` is ``act(policy_state, obs, params) -> (action, policy_state)`
 says what the action is: an acceleration (2,) (``"accel"``, the baselines of section 7) or a
 discrete action of eq. 6.1 (``"table"``) or eq. 6.2 (``"waypoint"``). An optional ``shield``
 (``action, state, params) -> action`` replaces the chosen action before it is sent (the BS's
-return-home shield, ``agents/shield.py``).
+return-home shield, ``agents/shield.py``). An optional ``number`` says how the BS numbers the
+devices of a layout when an episode starts (``EnvState.renumbered``; e.g. along the shortest path).
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ class Policy(NamedTuple):
     mode: str = "accel"  # what ``act`` returns (POLICY_MODES)
     observe: Callable = full_state  # (state, params) -> the ``obs`` that ``act`` sees
     shield: Callable | None = None  # (action, state, params) -> the action sent
+    number: Callable | None = None  # (state, params) -> (N,): how the BS numbers a new layout's devices
 
 
 def as_policy(policy: Policy | Callable) -> Policy:
@@ -61,6 +63,15 @@ class SlotOut(NamedTuple):
     action: Any
     shielded: jax.Array
     reward: jax.Array
+
+
+def numbered(policy: Policy, state: EnvState, params: EnvParams) -> tuple[EnvState, jax.Array | None]:
+    """A new episode's state as ``policy`` numbers its devices, and the order back to the drawn
+    numbering (None when the policy keeps it)."""
+    if policy.number is None:
+        return state, None
+    order = policy.number(state, params)
+    return state.renumbered(order), jnp.argsort(order)
 
 
 def observe(policy: Policy, state: EnvState, params: EnvParams) -> jax.Array | None:

@@ -26,10 +26,10 @@ import jax.numpy as jnp
 from flax import struct
 from jax.typing import ArrayLike
 
-from semuav_jax.engine import Policy, as_policy, observe
+from semuav_jax.engine import Policy, as_policy, numbered, observe
 from semuav_jax.env import EnvState, reset_state
 from semuav_jax.params import EnvParams, validate_params
-from semuav_jax.rollout import check_valid, delay_draws, episode, finish, scan_body, start
+from semuav_jax.rollout import check_valid, delay_draws, drawn_numbering, episode, finish, scan_body, start
 
 ARRIVAL_DB = 100.0  # a simulated flight scores this much more for arriving, and again for SLACK_S to spare
 SLACK_S = 2.0  # s: the simulated delays are not the flight's, so a plan that arrives just in time is a risk
@@ -123,7 +123,7 @@ def switching_episode(
     periods = -(-params.K // sw.every)
     u = delay_draws(k_steps, params)
     u = jnp.concatenate([u, jnp.zeros(periods * sw.every - params.K)]).reshape(periods, sw.every)
-    state = reset_state(k_reset, params)
+    state, back = numbered(sw.policy, reset_state(k_reset, params), params)
 
     def period(c: Any, xs: tuple[jax.Array, jax.Array]) -> tuple[Any, tuple[jax.Array, Any]]:
         draws, i = xs
@@ -139,7 +139,7 @@ def switching_episode(
     c, (chosen, tr) = jax.lax.scan(period, c0, (u, jnp.arange(periods)))
     if trace:  # (periods, every, ...) -> the K slots of the episode
         tr = jax.tree.map(lambda x: x.reshape((periods * sw.every,) + x.shape[2:])[: params.K], tr)
-    return finish(sw.policy, c, params), chosen, tr
+    return finish(sw.policy, c, params), chosen, drawn_numbering(tr, back)
 
 
 @partial(jax.jit, static_argnames=("sw", "trace"))
@@ -192,4 +192,4 @@ def forced(policy: Policy) -> Policy:
         sent = jnp.where(ps.left > 0, jnp.asarray(ps.action, jnp.asarray(a).dtype), a)
         return sent, Forced(inner, ps.action, ps.left - 1)
 
-    return Policy(act=act, mode=policy.mode, observe=policy.observe, shield=policy.shield)
+    return policy._replace(act=act)

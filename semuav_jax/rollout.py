@@ -14,10 +14,11 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from semuav_jax.engine import Policy, as_policy, observe, slot
+from semuav_jax.engine import Policy, as_policy, numbered, observe, slot
 from semuav_jax.env import EnvState, reset_state
 from semuav_jax.metrics import episode_metrics
 from semuav_jax.params import EnvParams, validate_params
+from semuav_jax.state import DEVICE_FIELDS
 
 TRACE_FIELDS = ("q", "v", "a_prev", "delay", "m", "phi", "x", "done")
 
@@ -67,6 +68,13 @@ def scan_body(
     return body
 
 
+def drawn_numbering(tr: dict[str, jax.Array] | None, back: jax.Array | None) -> dict[str, jax.Array] | None:
+    """A trace (slots leading) with its device fields back in the layout's drawn numbering."""
+    if tr is None or back is None:
+        return tr
+    return {f: x[:, back] if f in DEVICE_FIELDS else x for f, x in tr.items()}
+
+
 def finish(policy: Policy, c: Carry, params: EnvParams) -> dict:
     """The episode's metrics (MODEL.md section 8), with ``shield_share`` for a shielded policy."""
     metrics = episode_metrics(c.state, params)
@@ -90,13 +98,15 @@ def episode(
     init_state: EnvState | None = None,
     trace: bool = False,
 ) -> tuple[dict[str, jax.Array], dict[str, jax.Array] | None]:
-    """One episode of K slots from ``init_state`` (or a reset with ``key``); returns (metrics, trace).
+    """One episode of K slots from ``init_state`` (or a reset with ``key``, its devices numbered as
+    the policy numbers them); returns (metrics, trace).
 
-    The trace (when asked) holds, per slot, the state fields of ``TRACE_FIELDS`` and the reward.
+    The trace (when asked) holds, per slot, the state fields of ``TRACE_FIELDS`` (devices in the
+    drawn numbering) and the reward.
     """
     policy = as_policy(policy)
     k_reset, k_steps = jax.random.split(key)
-    state = reset_state(k_reset, params) if init_state is None else init_state
+    state, back = numbered(policy, reset_state(k_reset, params), params) if init_state is None else (init_state, None)
     # unroll=2 lets XLA fuse across two slots: ~15 % faster on CPU (docs/performance.md)
     c, tr = jax.lax.scan(
         scan_body(policy, params, trace),
@@ -104,7 +114,7 @@ def episode(
         delay_draws(k_steps, params),
         unroll=2,
     )
-    return finish(policy, c, params), tr
+    return finish(policy, c, params), drawn_numbering(tr, back)
 
 
 @partial(jax.jit, static_argnames=("policy", "trace", "state_axes"))
@@ -173,7 +183,7 @@ def rollout_replanned(
     policy = as_policy(policy)
     keys = jnp.asarray(keys)
     split = jax.vmap(jax.random.split)(keys)
-    states = jax.vmap(reset_state, (0, None))(split[:, 0], params)
+    states, back = jax.vmap(lambda k: numbered(policy, reset_state(k, params), params))(split[:, 0])
     draws = jax.vmap(delay_draws, (0, None))(split[:, 1], params)
     c, parts = None, []
     for t0 in range(0, params.K, int(every)):
@@ -185,4 +195,5 @@ def rollout_replanned(
         parts.append(tr)
     metrics = jax.vmap(lambda c: finish(policy, c, params))(c)
     check_valid(metrics)
-    return metrics, (jax.tree.map(lambda *x: jnp.concatenate(x, axis=1), *parts) if trace else None)
+    tr = jax.tree.map(lambda *x: jnp.concatenate(x, axis=1), *parts) if trace else None
+    return metrics, (tr if tr is None or back is None else jax.vmap(drawn_numbering)(tr, back))

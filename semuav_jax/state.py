@@ -27,3 +27,11 @@ class EnvState:
     arrived: jax.Array  # bool
     done: jax.Array  # bool: arrived or t == K
     ret: jax.Array  # return accumulated so far
+
+    def renumbered(self, order: jax.Array) -> EnvState:
+        """The same state with device i the former device ``order[i]`` (a device's index carries
+        no meaning: the BS may number them as it likes, e.g. along a path)."""
+        return self.replace(**{f: getattr(self, f)[order] for f in DEVICE_FIELDS})
+
+
+DEVICE_FIELDS = ("m", "phi", "x", "dev_pos", "dev_img")  # the fields with a leading device axis

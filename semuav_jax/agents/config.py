@@ -14,6 +14,7 @@ from typing import Any
 from semuav_jax.actions import ACTION_MODES, OPTION_K
 
 DEMO_EXPERTS = ("constant", "switch")  # agents/demos.py
+TOURS = ("replanned", "shortest")  # agents/options.py
 SLOTS_PER_OPTION = 16  # slots a random option lasts, about: sizes the warm-up of option agents
 
 
@@ -66,6 +67,13 @@ class DDQNConfig:
         "options: seconds of time margin of eq. 7.9, the devices an option may serve (that of the tuned dwell rules: "
         "-2; negative: trusts the flight time of eqs. 7.4-7.5 to be that much too long)",
     )
+    tour: str = option(
+        "replanned",
+        "options: the order their tour targets follow (eq. 6.5): replanned (a short path from the UAV through the "
+        "devices, re-planned at every decision) or shortest (the BS numbers a layout's devices along the shortest "
+        "path q0 -> devices -> q_fin when the episode starts, as TSP-dwell flies it, and follows that order)",
+        choices=TOURS,
+    )
     demo_steps: int = option(
         0,
         "vmapped env steps the expert option (the first along the tour, k by bandwidth: demo_k, demo_edges) flies "
@@ -107,6 +115,10 @@ class DDQNConfig:
         for name in ints:
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)}")
+        if self.tour not in TOURS:
+            raise ValueError(f"tour must be one of {TOURS}, got {self.tour!r}")
+        if self.tour != "replanned" and not self.uses_options:
+            raise ValueError("tour='shortest' orders the targets of options: it needs actions='option'")
         if self.demo_expert not in DEMO_EXPERTS:
             raise ValueError(f"demo_expert must be one of {DEMO_EXPERTS}, got {self.demo_expert!r}")
         if isinstance(self.demo_every, bool) or not isinstance(self.demo_every, int) or self.demo_every < 1:

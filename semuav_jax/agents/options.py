@@ -19,7 +19,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from semuav_jax.actions import HOME_CODE, OPTION_K, device_order, option_code, option_fits
-from semuav_jax.tour import tour_order
+from semuav_jax.tour import numbered_order, shortest_path, tour_order
 
 if TYPE_CHECKING:
     from semuav_jax.env import EnvState
@@ -85,17 +85,25 @@ def running(opt: Option, obs: OptionObs, params: EnvParams) -> jax.Array:
     return opt.active & ((opt.code == HOME_CODE) | serving)
 
 
-def planned_tour(obs: OptionObs, params: EnvParams) -> jax.Array:
-    """(N,) the tour the options follow (eq. 6.5), planned from ``obs``: through the devices that fit
-    and hold fewer than OPTION_K[0] symbols."""
-    return tour_order(obs.q, obs.dev_pos, obs.fits & (obs.m < OPTION_K[0] - 1e-3), params.q_fin)
+def planned_tour(obs: OptionObs, params: EnvParams, shortest: bool = False) -> jax.Array:
+    """(N,) the tour the options follow (eq. 6.5) through the devices that fit and hold fewer than
+    OPTION_K[0] symbols: planned from ``obs``, or (``shortest``) in the order of the devices'
+    numbers, which :func:`number_along_path` gave them along the shortest path."""
+    live = obs.fits & (obs.m < OPTION_K[0] - 1e-3)
+    return numbered_order(live) if shortest else tour_order(obs.q, obs.dev_pos, live, params.q_fin)
+
+
+def number_along_path(state: EnvState, params: EnvParams) -> jax.Array:
+    """The ``engine.Policy.number`` of a BS whose options follow the shortest path: a new layout's
+    devices in the order of the shortest path q0 -> devices -> q_fin (``tour.shortest_path``)."""
+    return shortest_path(state.q, state.dev_pos, params.q_fin)
 
 
 def step_option(
     opt: Option, choice: jax.Array, obs: OptionObs, params: EnvParams, tour: jax.Array | None = None
 ) -> Option:
     """The option of this slot: ``opt`` while it runs (and nothing is forced), else a decision for
-    ``choice`` (or the forced choice) along ``tour`` (None: :func:`planned_tour` now)."""
+    ``choice`` (or the forced choice) along ``tour`` (None: :func:`planned_tour` re-planned now)."""
     decide = ~running(opt, obs, params) | (opt.forced >= 0)
     choice = jnp.where(opt.forced >= 0, opt.forced, choice).astype(jnp.int32)
     tour = planned_tour(obs, params) if tour is None else tour
@@ -110,13 +118,14 @@ def step_option(
     )
 
 
-def option_act(choose: Callable) -> Callable:
+def option_act(choose: Callable, shortest: bool = False) -> Callable:
     """The ``act`` of an option policy whose choice is ``choose(inner, x, params)`` (x: the network
-    input): policy state ``(inner, Option)``, action the option's command code."""
+    input), along :func:`planned_tour` (``shortest``: the devices' numbers): policy state
+    ``(inner, Option)``, action the option's command code."""
 
     def act(ps: tuple[Any, Option], obs: OptionObs, params: EnvParams) -> tuple[jax.Array, tuple[Any, Option]]:
         inner, opt = ps
-        opt = step_option(opt, choose(inner, obs.x, params), obs, params)
+        opt = step_option(opt, choose(inner, obs.x, params), obs, params, planned_tour(obs, params, shortest))
         return opt.code, (inner, opt)
 
     return act

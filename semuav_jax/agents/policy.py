@@ -15,7 +15,7 @@ from flax import struct
 from semuav_jax.actions import HOME, HOME_CODE
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.features import option_features, table_features, waypoint_features
-from semuav_jax.agents.options import idle, option_act, option_observe
+from semuav_jax.agents.options import idle, number_along_path, option_act, option_observe
 from semuav_jax.agents.shield import shield, waypoint_shield
 from semuav_jax.engine import Policy
 from semuav_jax.env import reset_state
@@ -73,12 +73,14 @@ def network_input(obs: Any) -> jax.Array:
 
 def choice_policy(choose: Callable, config: DDQNConfig) -> Policy:
     """The Policy that chooses ``choose(inner, x, params)`` in every slot, or, for options, at every
-    decision (``agents/options.py``), through the shield."""
+    decision (``agents/options.py``), through the shield; with ``config.tour`` 'shortest' the BS
+    numbers a new layout's devices along the shortest path."""
     if config.uses_options:
-        act = option_act(choose)
+        act = option_act(choose, config.tour == "shortest")
     else:
         act = lambda inner, x, params: (choose(inner, x, params), inner)
-    return Policy(act=act, mode=config.actions, observe=_observe(config), shield=agent_shield(config))
+    number = number_along_path if config.tour == "shortest" else None
+    return Policy(act=act, mode=config.actions, observe=_observe(config), shield=agent_shield(config), number=number)
 
 
 @functools.cache

@@ -24,12 +24,12 @@ from jax.typing import ArrayLike
 
 from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.demos import demonstrate, margin_loss
+from semuav_jax.agents.layouts import layout_pool, restart_state
 from semuav_jax.agents.network import QNetwork, num_actions, q_network
 from semuav_jax.agents.policy import Explore, explore_policy, input_size, network_input
 from semuav_jax.agents.replay import ReplayBuffer, Transition, n_step_transition, replay_init, ring_buffer
 from semuav_jax.agents.smdp import option_transitions, pending_init
 from semuav_jax.engine import Policy, slot
-from semuav_jax.env import reset_state
 from semuav_jax.metrics import episode_metrics
 from semuav_jax.params import EnvParams, validate_params
 
@@ -79,6 +79,7 @@ class TrainState:
     updates: jax.Array  # gradient updates
     chunk: jax.Array  # chunks done
     demos: Any = None  # the demonstration memory (``replay.Replay``; agents/demos.py), if demo_steps > 0
+    layouts: Any = None  # the numbered training layouts (``layouts.layout_pool``), if the policy numbers devices
 
 
 class Trainer(NamedTuple):
@@ -130,13 +131,14 @@ def update(tr: Trainer, ts: TrainState, key: jax.Array) -> tuple[TrainState, jax
 
 
 def env_slot(
-    tr: Trainer, key: jax.Array, state: EnvState, obs: Any, ps: Any, params: EnvParams
+    tr: Trainer, key: jax.Array, state: EnvState, obs: Any, ps: Any, params: EnvParams, layouts: Any = None
 ) -> tuple[EnvState, Any, SlotOut, Any, jax.Array, dict[str, jax.Array], Any]:
     """``engine.slot`` for one env, then gymnax's auto-reset (a finished episode restarts with a new
-    layout). Returns (state, obs, SlotOut, obs before the reset, done, episode metrics, policy state)."""
+    layout, :func:`restart_state`). Returns (state, obs, SlotOut, obs before the reset, done, episode
+    metrics, policy state)."""
     k_step, k_reset = jax.random.split(key)
     new, new_obs, ps, out = slot(tr.policy, jax.random.uniform(k_step), state, obs, ps, params)
-    restart = reset_state(k_reset, params)
+    restart = restart_state(k_reset, params, layouts)
     select = lambda r, s: jax.lax.select(new.done, r, s)
     state = jax.tree.map(select, restart, new)
     obs = jax.tree.map(select, tr.policy.observe(restart, params), new_obs)
@@ -153,12 +155,12 @@ def env_step(
     n_act = num_actions(tr.env_params, tr.config)
     explore = jax.random.randint(k_rand, (E,), 0, n_act) if action is None else action
     ps = Explore(ts.params, eps, jax.random.uniform(k_eps, (E,)), explore)
-    axes = (0, 0, 0, Explore(None, None, 0, 0), tr.env_axes)
+    axes = (0, 0, 0, Explore(None, None, 0, 0), tr.env_axes, None)
     c, option = tr.config, tr.config.uses_options
     if option:
-        ps, axes = (ps, ts.window.option), axes[:3] + ((axes[3], 0), tr.env_axes)
+        ps, axes = (ps, ts.window.option), axes[:3] + ((axes[3], 0), tr.env_axes, None)
     state, obs, out, final_obs, done, met, ps = jax.vmap(partial(env_slot, tr), axes)(
-        jax.random.split(k_env, E), ts.env_state, ts.obs, ps, tr.env_params
+        jax.random.split(k_env, E), ts.env_state, ts.obs, ps, tr.env_params, ts.layouts
     )
     x, reward = network_input(ts.obs), out.reward * c.reward_scale
     if option:  # one transition per decision (agents/smdp.py), stored here
@@ -189,7 +191,9 @@ def init(tr: Trainer, key: jax.Array) -> TrainState:
     k_warm, k_demo = jax.random.split(k_warm) if c.demo_steps else (k_warm, None)
     n_in = input_size(tr.env_params.replace(B=tr.env_params.B[0]), c)
     params = tr.network.init(k_net, jnp.zeros((n_in,), jnp.float32))
-    states = jax.vmap(reset_state, (0, tr.env_axes))(jax.random.split(k_env, E), tr.env_params)
+    layouts = layout_pool(tr.policy, tr.env_params.replace(B=tr.env_params.B[0]), jax.random.fold_in(k_env, E))
+    restart = lambda k, p: restart_state(k, p, layouts)
+    states = jax.vmap(restart, (0, tr.env_axes))(jax.random.split(k_env, E), tr.env_params)
     empty = replay_init(E, n_in).data
     if tr.config.uses_options:
         window = pending_init(empty)
@@ -207,6 +211,7 @@ def init(tr: Trainer, key: jax.Array) -> TrainState:
         step=jnp.zeros((), jnp.int32),
         updates=jnp.zeros((), jnp.int32),
         chunk=jnp.zeros((), jnp.int32),
+        layouts=layouts,
     )
     fill = lambda ts, k: (env_step(tr, ts, k, 1.0)[0], None)
     warm = lambda ts, k: (store_step(tr, ts, k, 1.0)[0], None)
