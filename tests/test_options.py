@@ -126,7 +126,7 @@ def test_option_commands_by_hand(state, params):
 
 def test_an_option_runs_until_its_device_holds_k_symbols(state, params):
     """A decision fixes (device, k); the option goes on while m_n < k and ends at k; a forced choice
-    is a decision at once; the home option never ends."""
+    is a decision at once; the home option goes on while no more devices are live."""
     obs = lambda s: OptionObs(jnp.zeros(3), s.m, jnp.ones(10, bool), device_order(s, params), s.q, s.dev_pos)
     near = TOUR_TARGETS * L
     opt = step_option(idle(), jnp.int32(near + L + 1), obs(state), params)  # device 7 until 24 symbols
@@ -146,7 +146,8 @@ def test_an_option_runs_until_its_device_holds_k_symbols(state, params):
 
 def test_an_option_ends_when_its_device_stops_fitting(state, params):
     """Eq. 7.9: short of k, the option still ends once its device no longer fits (the dwell rules'
-    test); the next decision chooses among the devices that fit, the home option never ends."""
+    test); the next decision chooses among the devices that fit; the home option goes on while
+    devices stop fitting."""
     obs = lambda s, fits: OptionObs(jnp.zeros(3), s.m, fits, device_order(s, params), s.q, s.dev_pos)
     near = TOUR_TARGETS * L
     all_fit = jnp.ones(10, bool)
@@ -159,6 +160,44 @@ def test_an_option_ends_when_its_device_stops_fitting(state, params):
     assert bool(nxt.decided) and int(nxt.code) == 5  # from device 7, 5 is the nearest that fits short of 16
     home = step_option(idle(), jnp.int32(OPTION_HOME), obs(state, all_fit), params)
     assert bool(running(home, obs(state, jnp.zeros(10, bool)), params))
+
+
+def test_the_home_option_ends_when_a_device_becomes_live(state, params):
+    """Home, chosen while devices 5 and 7 are live (short of OPTION_K[0] and fitting), goes on while
+    those or fewer are; it ends when a third becomes live (flying off at speed, eqs. 7.4-7.5 can fit
+    a device again, and a dwell rule turns to it), and the next decision serves it."""
+    obs = lambda s, fits: OptionObs(jnp.zeros(3), s.m, fits, device_order(s, params), s.q, s.dev_pos)
+    two = jnp.zeros(10, bool).at[5].set(True).at[7].set(True)
+    home = step_option(idle(), jnp.int32(OPTION_HOME), obs(state, two), params)
+    assert int(home.code) == HOME_CODE and int(home.servable) == 2
+    assert bool(running(home, obs(state, two), params))
+    assert bool(running(home, obs(state, two.at[7].set(False)), params))
+    assert bool(running(home, obs(state, two.at[2].set(True)), params))  # device 2 holds 256: not live
+    three = two.at[9].set(True)
+    assert not bool(running(home, obs(state, three), params))
+    nxt = step_option(home, jnp.int32(TOUR_TARGETS * L), obs(state.replace(q=state.dev_pos[9]), three), params)
+    assert bool(nxt.decided) and int(nxt.code) == 9
+
+
+def test_training_layouts_are_numbered_along_the_shortest_path(params, monkeypatch):
+    """A policy that numbers devices trains on a pool of layouts numbered once: a restart is a pool
+    layout, numbered along the shortest path; any other policy draws a new layout."""
+    from semuav_jax.agents import layouts
+    from semuav_jax.tour import shortest_path
+
+    monkeypatch.setattr(layouts, "LAYOUT_POOL", 8)
+    cfg = DDQNConfig(actions="option", tour="shortest")
+    pool = layouts.layout_pool(greedy_policy(None, cfg), params, jax.random.key(1))
+    assert pool[1].shape == (8, 10)
+    s = layouts.restart_state(jax.random.key(2), params, pool)
+    np.testing.assert_array_equal(shortest_path(s.q, s.dev_pos, params.q_fin), np.arange(10))
+    drawn = [reset_state(jax.random.fold_in(pool[0], i), params).dev_pos for i in range(8)]
+    assert any(np.array_equal(np.sort(np.asarray(d), 0), np.sort(np.asarray(s.dev_pos), 0)) for d in drawn)
+    assert layouts.layout_pool(greedy_policy(None, DDQNConfig(actions="option")), params, jax.random.key(1)) is None
+    with pytest.raises(ValueError, match="tour must be one of"):
+        DDQNConfig(actions="option", tour="nearest")
+    with pytest.raises(ValueError, match="needs actions='option'"):
+        DDQNConfig(tour="shortest")
 
 
 def test_semi_mdp_transitions_by_hand():

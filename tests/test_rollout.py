@@ -11,6 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from semuav_jax import env
+from semuav_jax.control import rest_command
+from semuav_jax.engine import Policy
 from semuav_jax.metrics import episode_metrics
 from semuav_jax.params import _NON_NEGATIVE, _POSITIVE, make_params
 from semuav_jax.rollout import delay_draws, episode, random_policy, random_policy_state, rollout
@@ -44,6 +46,29 @@ def test_rollout_equals_python_loop(params):
         for name, value in final.items():
             assert float(metrics[name][e]) == pytest.approx(float(value), rel=1e-4, abs=1e-4), name
         assert float(metrics["return"][e]) == pytest.approx(ret, rel=1e-4, abs=1e-3)
+
+
+def toward_device(i):
+    """Come to rest over device ``i`` (by its number), whatever it holds."""
+
+    def act(ps, state, params):
+        n = state.m.shape[0]
+        return rest_command(state.q, state.v, state.dev_pos, jnp.zeros(n), jnp.arange(n) == i, 20.0, 25.0, params), ps
+
+    return act
+
+
+def test_a_policy_that_numbers_the_devices_sees_them_numbered_and_traces_the_drawn_numbers(params):
+    """Numbered in reverse, device 0 is the drawn device N - 1: flying to it is flying to N - 1 in the
+    drawn numbering, slot for slot, and the trace's device fields come back in the drawn numbering."""
+    keys = jax.random.split(jax.random.key(4), 6)
+    reverse = lambda state, params: jnp.arange(state.m.shape[0])[::-1]
+    m1, t1 = rollout(Policy(act=toward_device(0), number=reverse), keys, params, trace=True)
+    m2, t2 = rollout(Policy(act=toward_device(params.N - 1)), keys, params, trace=True)
+    for f in ("q", "m", "phi", "x"):
+        np.testing.assert_allclose(t1[f], t2[f], rtol=1e-6, atol=1e-5, err_msg=f)
+    assert float(np.max(t1["m"][:, -1, -1])) > 0.0  # the drawn last device was served
+    np.testing.assert_allclose(m1["mean_psnr"], m2["mean_psnr"], rtol=1e-6)
 
 
 def test_fixed_key_reproduces_bit_for_bit(params):

@@ -42,9 +42,10 @@ class OptionObs(NamedTuple):
 
 @struct.dataclass
 class Option:
-    """The option running in one episode (command code, symbol target k, running?) and, of the last
-    slot, whether it was a decision and the agent's choice there; ``forced`` >= 0 makes the next
-    slot a decision for that choice (the agent with search, ``agents/search.py``)."""
+    """The option running in one episode (command code, symbol target k, running?, how many devices
+    were :func:`live` at its decision) and, of the last slot, whether it was a decision and the agent's
+    choice there; ``forced`` >= 0 makes the next slot a decision for that choice (the agent with
+    search, ``agents/search.py``)."""
 
     code: jax.Array
     k: jax.Array
@@ -52,12 +53,13 @@ class Option:
     decided: jax.Array
     choice: jax.Array
     forced: jax.Array
+    servable: jax.Array
 
 
 def idle() -> Option:
     """No option running: the next slot is a decision."""
     i = jnp.zeros((), jnp.int32)
-    return Option(i + HOME_CODE, jnp.zeros((), jnp.float32), jnp.zeros((), bool), jnp.zeros((), bool), i, i - 1)
+    return Option(i + HOME_CODE, jnp.zeros((), jnp.float32), jnp.zeros((), bool), jnp.zeros((), bool), i, i - 1, i)
 
 
 def idle_batch(shape: tuple[int, ...]) -> Option:
@@ -76,21 +78,29 @@ def option_observe(features: Callable, margin: float) -> Callable:
     return observe
 
 
+def live(obs: OptionObs) -> jax.Array:
+    """(N,) bool: the devices an option of the smallest k could serve, short of OPTION_K[0] symbols
+    and fitting (eq. 7.9); the tour runs through them."""
+    return obs.fits & (obs.m < OPTION_K[0] - 1e-3)
+
+
 def running(opt: Option, obs: OptionObs, params: EnvParams) -> jax.Array:
-    """Whether ``opt`` goes on: it runs, and it is the home option, or its device holds fewer than
-    min(k, M) symbols and still fits (eq. 7.9: a dwell rule leaves a device there too)."""
+    """Whether ``opt`` goes on: it runs, and its device holds fewer than min(k, M) symbols and still
+    fits (eq. 7.9: a dwell rule leaves a device there too), or it is the home option and no more
+    devices are :func:`live` than at its decision (flying off a device at speed, eqs. 7.4-7.5 can fit
+    one again, and a dwell rule turns to it)."""
     n = jnp.maximum(opt.code, 0)
     m = obs.m[n]
     serving = (m < opt.k - 1e-3) & (m < params.M - 1e-3) & obs.fits[n]
-    return opt.active & ((opt.code == HOME_CODE) | serving)
+    home = (opt.code == HOME_CODE) & (jnp.sum(live(obs)) <= opt.servable)
+    return opt.active & (home | serving)
 
 
 def planned_tour(obs: OptionObs, params: EnvParams, shortest: bool = False) -> jax.Array:
     """(N,) the tour the options follow (eq. 6.5) through the devices that fit and hold fewer than
     OPTION_K[0] symbols: planned from ``obs``, or (``shortest``) in the order of the devices'
     numbers, which :func:`number_along_path` gave them along the shortest path."""
-    live = obs.fits & (obs.m < OPTION_K[0] - 1e-3)
-    return numbered_order(live) if shortest else tour_order(obs.q, obs.dev_pos, live, params.q_fin)
+    return numbered_order(live(obs)) if shortest else tour_order(obs.q, obs.dev_pos, live(obs), params.q_fin)
 
 
 def number_along_path(state: EnvState, params: EnvParams) -> jax.Array:
@@ -115,6 +125,7 @@ def step_option(
         decided=decide,
         choice=jnp.where(decide, choice, opt.choice),
         forced=jnp.full((), -1, jnp.int32),
+        servable=jnp.where(decide, jnp.sum(live(obs)), opt.servable).astype(jnp.int32),
     )
 
 
