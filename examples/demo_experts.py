@@ -1,7 +1,8 @@
 """The demonstration experts of an option agent (agents/demos.py, docs/ddqn.md "Demonstrations")
 flown on the first validation layouts at 5 / 20 / 25 / 40 kHz, beside TSP-dwell at its tuned knobs
 (the default run's cached references): the constant option (k by bandwidth, the option margin of
-eq. 7.9 at ``--option-margin``) through the BS's shield at each of ``--shield-margins``, and with
+eq. 7.9 at ``--option-margin``, along the tour ``--tour``) through the BS's shield at each of
+``--shield-margins``, and with
 ``--switch`` the switch expert (eq. 7.15 over the constant options, every 32 slots; about 3 min per
 bandwidth for 200 layouts).
 
@@ -35,9 +36,17 @@ ap.add_argument(
     default=RunConfig().agent.option_margin,
     help="s, eq. 7.9 (default: the default run's, %(default)s)",
 )
+ap.add_argument(
+    "--tour",
+    choices=("replanned", "shortest"),
+    default=RunConfig().agent.tour,
+    help="the options' tour, eq. 6.5 (default: the default run's, %(default)s)",
+)
 args = ap.parse_args()
 
-run = RunConfig.from_preset("default", agent={"demo_expert": "switch", "option_margin": args.option_margin})
+run = RunConfig.from_preset(
+    "default", agent={"demo_expert": "switch", "option_margin": args.option_margin, "tour": args.tour}
+)
 base = run.env_params()
 tuned = references(base, BANDWIDTHS, run.eval_episodes, run.validation_episodes)["tuning"]
 keys = episode_keys(VALIDATION_SEED, args.episodes)

@@ -36,7 +36,8 @@ def test_load_refuses_other_files(tmp_path):
 
 def test_evaluate_is_a_loop_of_act(agent):
     """evaluate()'s mean PSNR equals a plain Python loop of act + transition over the same episodes
-    (the policy state, an option agent's running option, handed from one act to the next)."""
+    (the policy state, an option agent's running option, handed from one act to the next; the
+    episode starting from the agent's numbering of the devices)."""
     params = agent.params.replace(B=20e3)
     keys = episode_keys(11, 3)
     act = jax.jit(lambda s, ps: agent.act(s, params, ps)[1:])
@@ -45,7 +46,7 @@ def test_evaluate_is_a_loop_of_act(agent):
     psnr, arrived = [], []
     for key in keys:
         k_reset, k_steps = jax.random.split(key)
-        state, ps = reset_state(k_reset, params), None
+        state, ps = agent.numbered(reset_state(k_reset, params), params), None
         for u in delay_draws(k_steps, params):
             accel, ps = first(state) if ps is None else act(state, ps)
             state = step(u, state, accel)

@@ -169,7 +169,7 @@ def test_the_home_option_ends_when_a_device_becomes_live(state, params):
     obs = lambda s, fits: OptionObs(jnp.zeros(3), s.m, fits, device_order(s, params), s.q, s.dev_pos)
     two = jnp.zeros(10, bool).at[5].set(True).at[7].set(True)
     home = step_option(idle(), jnp.int32(OPTION_HOME), obs(state, two), params)
-    assert int(home.code) == HOME_CODE and int(home.servable) == 2
+    assert int(home.code) == HOME_CODE and int(home.live_at_decision) == 2
     assert bool(running(home, obs(state, two), params))
     assert bool(running(home, obs(state, two.at[7].set(False)), params))
     assert bool(running(home, obs(state, two.at[2].set(True)), params))  # device 2 holds 256: not live

@@ -27,7 +27,7 @@ from semuav_jax.agents.network import QNetwork, q_network
 from semuav_jax.agents.policy import agent_input, greedy_policy, initial_state
 from semuav_jax.agents.run_config import RunConfig
 from semuav_jax.agents.runs import check_weights, load_run, shipped_folder
-from semuav_jax.engine import command
+from semuav_jax.engine import command, numbered
 from semuav_jax.io import atomic_write
 from semuav_jax.keys import TEST_SEED, episode_keys
 from semuav_jax.params import EnvParams
@@ -101,13 +101,21 @@ class Agent:
         params = self.params if params is None else params
         return self.network.apply(self.weights, agent_input(state, params, self.config))
 
+    def numbered(self, state: EnvState, params: EnvParams | None = None) -> EnvState:
+        """A new episode's first state with its devices numbered as this agent's BS numbers them
+        (along the shortest path for ``config.tour == "shortest"``; else ``state`` itself)."""
+        params = self.params if params is None else params
+        return numbered(greedy_policy(self.network, self.config), state, params)[0]
+
     def act(
         self, state: EnvState, params: EnvParams | None = None, policy_state: Any = None
     ) -> tuple[jax.Array, jax.Array, Any]:
         """The BS's command for one ``EnvState``: (action after the shield, acceleration (2,) for
         ``semuav_jax.env.transition``, policy state) (jittable; greedy, epsilon = 0). An option agent
         (eq. 6.4) goes on with the option running in ``policy_state`` (the third item of the last
-        call); None starts afresh, as at an episode's start. The action is then the command code."""
+        call); None starts afresh, as at an episode's start. The action is then the command code.
+        An agent whose options follow the shortest path (``config.tour``) expects an episode that
+        starts from :meth:`numbered`'s state."""
         params = self.params if params is None else params
         policy = greedy_policy(self.network, self.config)
         ps = initial_state(self.weights, self.config) if policy_state is None else policy_state

@@ -53,7 +53,7 @@ class Option:
     decided: jax.Array
     choice: jax.Array
     forced: jax.Array
-    servable: jax.Array
+    live_at_decision: jax.Array
 
 
 def idle() -> Option:
@@ -92,7 +92,7 @@ def running(opt: Option, obs: OptionObs, params: EnvParams) -> jax.Array:
     n = jnp.maximum(opt.code, 0)
     m = obs.m[n]
     serving = (m < opt.k - 1e-3) & (m < params.M - 1e-3) & obs.fits[n]
-    home = (opt.code == HOME_CODE) & (jnp.sum(live(obs)) <= opt.servable)
+    home = (opt.code == HOME_CODE) & (jnp.sum(live(obs)) <= opt.live_at_decision)
     return opt.active & (home | serving)
 
 
@@ -125,7 +125,7 @@ def step_option(
         decided=decide,
         choice=jnp.where(decide, choice, opt.choice),
         forced=jnp.full((), -1, jnp.int32),
-        servable=jnp.where(decide, jnp.sum(live(obs)), opt.servable).astype(jnp.int32),
+        live_at_decision=jnp.where(decide, jnp.sum(live(obs)), opt.live_at_decision).astype(jnp.int32),
     )
 
 
