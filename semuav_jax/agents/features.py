@@ -19,10 +19,10 @@ import jax.numpy as jnp
 
 from semuav_jax import channel
 from semuav_jax.actions import DWELL_SPEED, OPTION_HOME, OPTION_K, device_order, option_codes, option_fits
+from semuav_jax.agents.options import OptionObs, planned_tour
 from semuav_jax.control import time_home, time_via
 from semuav_jax.observation import DEVICE_FEATURES, GLOBAL_FEATURES
 from semuav_jax.params import EnvParams
-from semuav_jax.tour import tour_order
 
 if TYPE_CHECKING:
     from semuav_jax.env import EnvState
@@ -109,16 +109,17 @@ def stay_seconds(k: jax.Array, m: jax.Array, params: EnvParams) -> jax.Array:
     return jnp.maximum(jnp.minimum(k, params.M) - m, 0.0) * params.beta / channel.rest_rate(params)
 
 
-def option_features(state: EnvState, params: EnvParams, margin: float) -> jax.Array:
+def option_features(state: EnvState, params: EnvParams, margin: float, shortest: bool = False) -> jax.Array:
     """:func:`waypoint_features`, then for each option c < OPTION_HOME (eq. 6.4) of the device n it
     would serve: the PSNR it adds, C[i_n, k] - phi_n (by the range of C; the curve is what the BS
     knows of the device's image), the seconds its stay takes at the hover rate, (k - m_n)+ beta / R(0),
     and the slack it leaves, time left - flight via n home (eqs. 7.4-7.5) - that stay, both / T,
-    and whether it has a device, for the options of time margin ``margin`` s (eq. 7.9). Zeros for an
-    option without a device."""
+    and whether it has a device, for the options of time margin ``margin`` s (eq. 7.9) along the tour
+    of ``options.planned_tour`` (``shortest``: the devices' numbers). Zeros for an option without a
+    device."""
     fits = option_fits(state, params, margin)
-    tour = tour_order(state.q, state.dev_pos, fits & (state.m < OPTION_K[0] - 1e-3), params.q_fin)
     order = device_order(state, params)
+    tour = planned_tour(OptionObs(None, state.m, fits, order, state.q, state.dev_pos), params, shortest)
     codes, ks = option_codes(OPTION_HOME, state.m, fits, order, tour, params)
     has = codes >= 0
     n = jnp.maximum(codes, 0)

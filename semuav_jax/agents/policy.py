@@ -30,7 +30,7 @@ if TYPE_CHECKING:
 def agent_input(state: EnvState, params: EnvParams, config: DDQNConfig) -> jax.Array:
     """The Q-network's input for one ``EnvState`` (``agents/features.py``)."""
     if config.option_inputs:
-        return option_features(state, params, config.option_margin)
+        return option_features(state, params, config.option_margin, config.tour == "shortest")
     if config.actions != "table":  # waypoint, dwell and option actions (eqs. 6.2-6.4)
         return waypoint_features(state, params)
     obs = observation(state, params)
