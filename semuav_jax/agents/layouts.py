@@ -1,5 +1,5 @@
 """The layouts a training env restarts on (gymnax's auto-reset): a new one per episode, or, for a
-policy that numbers a new layout's devices (``engine.Policy.number``: the shortest path, ~0.2 ms a
+policy that numbers a new layout's devices (``engine.Policy.number``: the shortest path, ~0.55 ms a
 layout, too slow for every slot of every env), one of LAYOUT_POOL layouts numbered once when
 training starts.
 """
