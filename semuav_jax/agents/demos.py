@@ -8,8 +8,8 @@ loss and the large-margin loss
 weighted by ``demo_weight``. Two experts (``demo_expert``):
 
 - ``constant``: the constant option of docs/model.md eq. 6.4, the first device along the tour
-  (eq. 6.5) until k symbols, k = ``demo_k`` by bandwidth (``demo_edges``), which is TSP-dwell on the
-  re-planned tour (``actions.option_code``);
+  (eq. 6.5) until k symbols, k = ``demo_k`` by bandwidth (``demo_edges``), which is TSP-dwell along
+  the agent's tour (its own order with ``tour="shortest"``; ``actions.option_code``);
 - ``switch``: every ``demo_every`` slots the BS simulates each constant option of
   :data:`SWITCH_OPTIONS` (first along the tour or nearest, every k) from each env's state to the
   end of the mission, the running option going on first, and follows the best (eq. 7.15,
