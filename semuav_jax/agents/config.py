@@ -117,7 +117,7 @@ class DDQNConfig:
                 raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)}")
         if self.tour not in TOURS:
             raise ValueError(f"tour must be one of {TOURS}, got {self.tour!r}")
-        if self.tour != "replanned" and not self.uses_options:
+        if self.shortest_tour and not self.uses_options:
             raise ValueError("tour='shortest' orders the targets of options: it needs actions='option'")
         if self.demo_expert not in DEMO_EXPERTS:
             raise ValueError(f"demo_expert must be one of {DEMO_EXPERTS}, got {self.demo_expert!r}")
@@ -174,6 +174,11 @@ class DDQNConfig:
                 f"total_steps ({self.total_steps}) is less than one chunk "
                 f"(num_envs * steps_per_chunk = {self.num_envs * self.steps_per_chunk})"
             )
+
+    @property
+    def shortest_tour(self) -> bool:
+        """Whether the BS numbers a layout's devices along the shortest path and the options follow it."""
+        return self.tour == "shortest"
 
     @property
     def uses_options(self) -> bool:

@@ -30,7 +30,7 @@ if TYPE_CHECKING:
 def agent_input(state: EnvState, params: EnvParams, config: DDQNConfig) -> jax.Array:
     """The Q-network's input for one ``EnvState`` (``agents/features.py``)."""
     if config.option_inputs:
-        return option_features(state, params, config.option_margin, config.tour == "shortest")
+        return option_features(state, params, config.option_margin, config.shortest_tour)
     if config.actions != "table":  # waypoint, dwell and option actions (eqs. 6.2-6.4)
         return waypoint_features(state, params)
     obs = observation(state, params)
@@ -76,10 +76,10 @@ def choice_policy(choose: Callable, config: DDQNConfig) -> Policy:
     decision (``agents/options.py``), through the shield; with ``config.tour`` 'shortest' the BS
     numbers a new layout's devices along the shortest path."""
     if config.uses_options:
-        act = option_act(choose, config.tour == "shortest")
+        act = option_act(choose, config.shortest_tour)
     else:
         act = lambda inner, x, params: (choose(inner, x, params), inner)
-    number = number_along_path if config.tour == "shortest" else None
+    number = number_along_path if config.shortest_tour else None
     return Policy(act=act, mode=config.actions, observe=_observe(config), shield=agent_shield(config), number=number)
 
 

@@ -140,7 +140,7 @@ def option_switching(
         return jnp.where(c > last, ids[jnp.clip(c - last - 1, 0, len(rules))], jnp.where(c == last, OPTION_HOME, c - 1))
 
     def candidate(net: Any, _: Any, c: jax.Array, now: Any, state: EnvState, params: EnvParams) -> tuple:
-        planned = planned_tour(simulated.observe(state, params), params, config.tour == "shortest")
+        planned = planned_tour(simulated.observe(state, params), params, config.shortest_tour)
         (_, rule, tour), opt = ((None, jnp.int32(-1), planned), idle()) if now is None else now
         option = option_of(c)
         rule = jnp.where(c > last, option, jnp.where(c > 0, -1, rule)).astype(jnp.int32)

@@ -189,9 +189,10 @@ def init(tr: Trainer, key: jax.Array) -> TrainState:
     c, E = tr.config, tr.config.num_envs
     k_net, k_env, k_warm, k_run = jax.random.split(key, 4)
     k_warm, k_demo = jax.random.split(k_warm) if c.demo_steps else (k_warm, None)
-    n_in = input_size(tr.env_params.replace(B=tr.env_params.B[0]), c)
+    one_env = tr.env_params.replace(B=tr.env_params.B[0])  # input size and layouts do not depend on B
+    n_in = input_size(one_env, c)
     params = tr.network.init(k_net, jnp.zeros((n_in,), jnp.float32))
-    layouts = layout_pool(tr.policy, tr.env_params.replace(B=tr.env_params.B[0]), jax.random.fold_in(k_env, E))
+    layouts = layout_pool(tr.policy, one_env, jax.random.fold_in(k_env, E))
     restart = lambda k, p: restart_state(k, p, layouts)
     states = jax.vmap(restart, (0, tr.env_axes))(jax.random.split(k_env, E), tr.env_params)
     empty = replay_init(E, n_in).data
