@@ -123,7 +123,8 @@ def option_code(
     of k symbols that fit (eq. 7.9); option j * len(OPTION_K) + i serves, until it holds k, the j-th
     candidate along the tour for j < TOUR_TARGETS, else the (j - TOUR_TARGETS)-th nearest (the last
     candidate when there are fewer): code n, fixed at the decision whatever the orders become.
-    Option 0 followed throughout is TSP-dwell on the re-planned tour with k* = k, option
+    Option 0 followed throughout is TSP-dwell with k* = k along ``tour`` (its own order along the
+    shortest path, ``semuav_jax.tour.shortest_path``), option
     TOUR_TARGETS * len(OPTION_K) greedy-dwell (eq. 7.10), both with the margin of ``fits``.
     OPTION_HOME, or no candidate, is HOME_CODE (k = inf)."""
     L = len(OPTION_K)

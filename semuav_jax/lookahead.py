@@ -26,10 +26,19 @@ import jax.numpy as jnp
 from flax import struct
 from jax.typing import ArrayLike
 
-from semuav_jax.engine import Policy, as_policy, numbered, observe
-from semuav_jax.env import EnvState, reset_state
+from semuav_jax.engine import Policy, as_policy, observe
+from semuav_jax.env import EnvState
 from semuav_jax.params import EnvParams, validate_params
-from semuav_jax.rollout import check_valid, delay_draws, drawn_numbering, episode, finish, scan_body, start
+from semuav_jax.rollout import (
+    check_valid,
+    delay_draws,
+    drawn_numbering,
+    episode,
+    finish,
+    new_episode,
+    scan_body,
+    start,
+)
 
 ARRIVAL_DB = 100.0  # a simulated flight scores this much more for arriving, and again for SLACK_S to spare
 SLACK_S = 2.0  # s: the simulated delays are not the flight's, so a plan that arrives just in time is a risk
@@ -123,7 +132,7 @@ def switching_episode(
     periods = -(-params.K // sw.every)
     u = delay_draws(k_steps, params)
     u = jnp.concatenate([u, jnp.zeros(periods * sw.every - params.K)]).reshape(periods, sw.every)
-    state, back = numbered(sw.policy, reset_state(k_reset, params), params)
+    state, back = new_episode(sw.policy, k_reset, params)
 
     def period(c: Any, xs: tuple[jax.Array, jax.Array]) -> tuple[Any, tuple[jax.Array, Any]]:
         draws, i = xs

@@ -75,6 +75,12 @@ def drawn_numbering(tr: dict[str, jax.Array] | None, back: jax.Array | None) -> 
     return {f: x[:, back] if f in DEVICE_FIELDS else x for f, x in tr.items()}
 
 
+def new_episode(policy: Policy, key: jax.Array, params: EnvParams) -> tuple[EnvState, jax.Array | None]:
+    """A layout reset with ``key``, its devices numbered as ``policy`` numbers them, and the
+    order back to the drawn numbering (``engine.numbered``; None when the policy keeps it)."""
+    return numbered(policy, reset_state(key, params), params)
+
+
 def finish(policy: Policy, c: Carry, params: EnvParams) -> dict:
     """The episode's metrics (MODEL.md section 8), with ``shield_share`` for a shielded policy."""
     metrics = episode_metrics(c.state, params)
@@ -106,7 +112,7 @@ def episode(
     """
     policy = as_policy(policy)
     k_reset, k_steps = jax.random.split(key)
-    state, back = numbered(policy, reset_state(k_reset, params), params) if init_state is None else (init_state, None)
+    state, back = new_episode(policy, k_reset, params) if init_state is None else (init_state, None)
     # unroll=2 lets XLA fuse across two slots: ~15 % faster on CPU (docs/performance.md)
     c, tr = jax.lax.scan(
         scan_body(policy, params, trace),
@@ -183,7 +189,7 @@ def rollout_replanned(
     policy = as_policy(policy)
     keys = jnp.asarray(keys)
     split = jax.vmap(jax.random.split)(keys)
-    states, back = jax.vmap(lambda k: numbered(policy, reset_state(k, params), params))(split[:, 0])
+    states, back = jax.vmap(lambda k: new_episode(policy, k, params))(split[:, 0])
     draws = jax.vmap(delay_draws, (0, None))(split[:, 1], params)
     c, parts = None, []
     for t0 in range(0, params.K, int(every)):

@@ -51,6 +51,10 @@ def test_outputs(run_dir):
         for s in row["seeds"]:  # paired per layout, so the mean margin is the difference of the means
             ref = row["references"]["greedy 8.9"]["mean_psnr"]
             np.testing.assert_allclose(s["minus greedy 8.9"][0], s["mean_psnr"] - ref, atol=1e-4)
+            # the default run learns from demonstrations: the margin over its expert, paired likewise
+            mine = row["expert"]["mean_psnr"]
+            np.testing.assert_allclose(s["minus its expert"][0], s["mean_psnr"] - mine, atol=1e-4)
+        assert row["expert"]["k"] == {5e3: 16.0, 40e3: 32.0}.get(row["B"], 48.0)  # demo_k between demo_edges
     assert len(ev["commit"]) >= 40 and len(ev["curves_sha256"]) == 64
 
 

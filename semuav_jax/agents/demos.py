@@ -43,6 +43,11 @@ L = len(OPTION_K)
 SWITCH_OPTIONS = tuple(range(L)) + tuple(TOUR_TARGETS * L + i for i in range(L))  # TSP-dwell's, then greedy-dwell's
 
 
+def expert_k(B: jax.Array, config: DDQNConfig) -> jax.Array:
+    """The expert option's k at bandwidth ``B``: that of ``config.demo_k`` between the ``demo_edges`` around B."""
+    return jnp.asarray(OPTION_K)[expert_choice(B, config)]
+
+
 def expert_choice(B: jax.Array, config: DDQNConfig) -> jax.Array:
     """The expert's option at bandwidth ``B``: option i (the first along the tour, k = OPTION_K[i])
     for the k of ``config.demo_k`` between the ``demo_edges`` around B."""

@@ -11,6 +11,7 @@ import numpy as np
 from jax.typing import ArrayLike
 
 from semuav_jax.agents.config import DDQNConfig
+from semuav_jax.agents.demos import expert_policy
 from semuav_jax.agents.policy import greedy_policy, initial_state
 from semuav_jax.params import EnvParams, validate_params
 from semuav_jax.rollout import rollout
@@ -18,6 +19,7 @@ from semuav_jax.sharding import map_episodes
 
 if TYPE_CHECKING:
     from semuav_jax.agents.network import QNetwork
+    from semuav_jax.engine import Policy
 
 
 def evaluate_agent(
@@ -40,14 +42,32 @@ def seed_metrics(
     run in fixed-size blocks of episodes over every device of every process
     (``sharding.map_episodes``): the bits do not depend on the devices and processes, and one
     program holds at most a block's episodes for every seed and B."""
+    return _metrics(greedy_policy(network, config), nets, 0, config, keys, params, bandwidths)
+
+
+def expert_metrics(config: DDQNConfig, keys: jax.Array, params: EnvParams, bandwidths: ArrayLike) -> dict:
+    """Per-episode metrics (len(bandwidths), E) of the agent's constant expert, the fixed rule its
+    demonstrations come from (``agents/demos.py``), as :func:`seed_metrics` runs them."""
+    return _metrics(expert_policy(config), jnp.zeros(()), None, config, keys, params, bandwidths)
+
+
+def _metrics(
+    policy: Policy,
+    inner: Any,
+    seed_axis: int | None,
+    config: DDQNConfig,
+    keys: jax.Array,
+    params: EnvParams,
+    bandwidths: ArrayLike,
+) -> dict[str, np.ndarray]:
     validate_params(params)
     if not all(0 < b < float("inf") for b in np.asarray(bandwidths, np.float64).ravel()):
         raise ValueError(f"bandwidths must be finite and > 0 Hz, got {bandwidths}")
-    policy = greedy_policy(network, config)
 
-    def at(net: Any, b: jax.Array, k: jax.Array) -> dict[str, jax.Array]:
-        return rollout(policy, k, params.replace(B=b), initial_state(net, config), state_axes=None)[0]
+    def at(inner: Any, b: jax.Array, k: jax.Array) -> dict[str, jax.Array]:
+        return rollout(policy, k, params.replace(B=b), initial_state(inner, config), state_axes=None)[0]
 
-    run = jax.jit(jax.vmap(jax.vmap(at, (None, 0, None)), (0, None, None)))
+    over_b = jax.vmap(at, (None, 0, None))
+    run = jax.jit(over_b if seed_axis is None else jax.vmap(over_b, (seed_axis, None, None)))
     B = jnp.asarray(bandwidths, jnp.float32)
-    return map_episodes(lambda k: run(nets, B, k), keys)
+    return map_episodes(lambda k: run(inner, B, k), keys)

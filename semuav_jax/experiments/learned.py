@@ -22,7 +22,8 @@ import numpy as np
 from baselines.report import BANDWIDTHS, best_arriving, reference_summary, summary, tune
 from baselines.report_table import reference_line
 from semuav_jax.agents.config import DDQNConfig
-from semuav_jax.agents.evaluate import seed_metrics
+from semuav_jax.agents.demos import expert_k
+from semuav_jax.agents.evaluate import expert_metrics, seed_metrics
 from semuav_jax.agents.network import q_network
 from semuav_jax.distributed import is_main
 from semuav_jax.experiments.references import bandwidths_of, references
@@ -49,6 +50,7 @@ MARGINS = (
     "exact planner",
     "plan-switch",
 )  # every reference the agent is compared with, paired
+EXPERT = "its expert"  # the fixed rule an agent with demonstrations learns from (agents/demos.py)
 
 
 def _header(names: Iterable[str]) -> str:
@@ -76,6 +78,10 @@ def compare(
     keys = episode_keys(TEST_SEED, episodes)
     unshielded = dataclasses.replace(config, shield_margin=None)
     per_seed = seed_metrics(network, nets, config, keys, params, bandwidths)
+    margins = MARGINS + ((EXPERT,) if config.demo_steps else ())
+    if config.demo_steps:
+        expert = expert_metrics(config, keys, params, bandwidths)
+        refs = [{**ref, EXPERT: {k: v[j] for k, v in expert.items()}} for j, ref in enumerate(refs)]
     if ablate_shield and config.shield_margin is not None:
         bare = seed_metrics(network, nets, unshielded, keys, params, bandwidths)
     seeds = per_seed["mean_psnr"].shape[0]
@@ -84,12 +90,12 @@ def compare(
         agent = [{k: v[s, j] for k, v in per_seed.items()} for s in range(seeds)]
         row = {
             "B": float(b),
-            "references": {k: reference_summary(m) for k, m in ref.items()},
+            "references": {k: reference_summary(m) for k, m in ref.items() if k != EXPERT},
             "seeds": [],
         }
         for m in agent:
             s = {**summary(m), "shield_share": float(np.mean(m["shield_share"]))}
-            for name in MARGINS:
+            for name in margins:
                 s[f"minus {name}"] = mean_ci(m["mean_psnr"] - ref[name]["mean_psnr"])
             row["seeds"].append(s)
         if ablate_shield and config.shield_margin is not None:
@@ -98,18 +104,21 @@ def compare(
                 s["mean_psnr_without_shield"] = float(np.mean(bare["mean_psnr"][i, j]))
         means = [s["mean_psnr"] for s in row["seeds"]]
         row["agent"] = {"mean_psnr": mean_ci(means)}
-        for name in MARGINS:
+        for name in margins:
             row["agent"][f"minus {name}"] = mean_ci([s[f"minus {name}"][0] for s in row["seeds"]])
         arrived = np.concatenate([np.asarray(m["arrived"], np.float64) for m in agent])
         row["agent"]["arrived"] = float(arrived.mean())
         row["agent"]["arrived_wilson95"] = [float(x) for x in wilson_interval(arrived.mean(), arrived.size)]
         row["agent"]["shield_share"] = float(np.mean([s["shield_share"] for s in row["seeds"]]))
+        if config.demo_steps:
+            k = float(np.asarray(expert_k(b, config)))
+            row["expert"] = {"k": k, **summary(ref[EXPERT])}
         rows.append(row)
         a = row["agent"]
         log(
             f"B = {b / 1e3:g} kHz: agent {a['mean_psnr'][0]:.2f} {pm(a['mean_psnr'][1])} dB over "
             f"{len(means)} seeds ({', '.join(f'{x:.2f}' for x in means)}); "
-            + ", ".join(f"{n} {a['minus ' + n][0]:+.2f} {pm(a['minus ' + n][1])}" for n in MARGINS)
+            + ", ".join(f"{n} {a['minus ' + n][0]:+.2f} {pm(a['minus ' + n][1])}" for n in margins)
         )
     return {
         "episodes": episodes,
@@ -117,22 +126,24 @@ def compare(
         "validation_seed": VALIDATION_SEED,
         "validation_episodes": validation_episodes,
         "tuning": tuned,
+        "margins": list(margins),
         "rows": rows,
     }
 
 
 def markdown(r: dict) -> str:
     """The tables of docs/ddqn.md: the agent per seed and across seeds against the references."""
+    margins = r.get("margins", MARGINS)
     lines = [
         f"{r['episodes']} test layouts (seed {r['test_seed']}), never used in training or selection; "
         f"v_b* from {r['validation_episodes']} validation layouts (seed {r['validation_seed']}).",
         "",
-        f"| B (kHz) | agent, mean of seeds (dB) | {_header(MARGINS)} | arrival | shield share |",
-        "|---" * (4 + len(MARGINS)) + "|",
+        f"| B (kHz) | agent, mean of seeds (dB) | {_header(margins)} | arrival | shield share |",
+        "|---" * (4 + len(margins)) + "|",
     ]
     for row in r["rows"]:
         a = row["agent"]
-        cells = [f"{a[f'minus {n}'][0]:+.2f} {pm(a[f'minus {n}'][1])}" for n in MARGINS]
+        cells = [f"{a[f'minus {n}'][0]:+.2f} {pm(a[f'minus {n}'][1])}" for n in margins]
         lines.append(
             f"| {row['B'] / 1e3:g} | {a['mean_psnr'][0]:.2f} {pm(a['mean_psnr'][1])} | "
             + " | ".join(cells)
@@ -142,13 +153,13 @@ def markdown(r: dict) -> str:
         "",
         "Across seeds: mean of the seeds' means ± the t interval (95 %) over seeds.",
         "",
-        f"| B (kHz) | seed | mean PSNR (dB) | {_header(MARGINS)} (paired 95 % CIs) | arrival "
+        f"| B (kHz) | seed | mean PSNR (dB) | {_header(margins)} (paired 95 % CIs) | arrival "
         "| shield share | arrival without shield |",
-        "|---" * (6 + len(MARGINS)) + "|",
+        "|---" * (6 + len(margins)) + "|",
     ]
     for row in r["rows"]:
         for i, s in enumerate(row["seeds"]):
-            cells = [f"{s[f'minus {n}'][0]:+.2f} ± {s[f'minus {n}'][1]:.2f}" for n in MARGINS]
+            cells = [f"{s[f'minus {n}'][0]:+.2f} ± {s[f'minus {n}'][1]:.2f}" for n in margins]
             no = s.get("arrived_without_shield")
             lines.append(
                 f"| {row['B'] / 1e3:g} | {i} | {s['mean_psnr']:.2f} ± {s['ci95']:.2f} | "
@@ -165,6 +176,12 @@ def markdown(r: dict) -> str:
     for row in r["rows"]:
         for name, s in row["references"].items():
             lines.append(reference_line(row["B"], name, s))
+        if "expert" in row:
+            e = row["expert"]
+            lines.append(
+                f"| {row['B'] / 1e3:g} | {EXPERT} | options 1st along the tour, k {e['k']:g} | "
+                f"{e['mean_psnr']:.2f} ± {e['ci95']:.2f} | {e['coverage']:.2f} | {100 * e['arrived']:.1f} % |"
+            )
     return "\n".join(lines)
 
 
