@@ -251,7 +251,8 @@ def validation_table(
 ) -> str:
     """Markdown: mean PSNR of every seed of each run folder on ``episodes`` layouts of
     ``keys.VALIDATION_SEED`` at each B, the numbers settings are chosen on (test layouts untouched);
-    with ``references``, greedy-dwell and TSP-dwell at their knobs tuned on the same layouts."""
+    with ``references``, greedy-dwell and TSP-dwell at their knobs tuned on the same layouts. A run
+    with demonstrations adds a row of its expert (one per distinct rule)."""
     from semuav_jax.agents.runs import load_run
 
     keys = episode_keys(VALIDATION_SEED, episodes)
@@ -259,13 +260,19 @@ def validation_table(
         "| run | seed | " + " | ".join(f"{b / 1e3:g} kHz" for b in bandwidths) + " |",
         "|---|---|" + "---|" * len(bandwidths),
     ]
-    params = None
+    params, experts = None, {}
     for folder in folders:
         run, nets = load_run(folder)
         params, config = run.env_params(), run.agent
         psnr = seed_metrics(q_network(params, config), nets, config, keys, params, bandwidths)["mean_psnr"].mean(-1)
         for s, row in enumerate(psnr):
             lines.append(f"| {folder} | {run.seed}:{s} | " + " | ".join(f"{x:.2f}" for x in row) + " |")
+        if config.demo_steps:  # one row per expert: the rule an agent must beat
+            rule = (config.demo_k, config.demo_edges, config.tour, config.option_margin, config.shield_margin)
+            experts.setdefault((rule, repr(run.env), run.curves), (folder, config, params))
+    for folder, config, at in experts.values():
+        psnr = expert_metrics(config, keys, at, bandwidths)["mean_psnr"].mean(-1)
+        lines.append(f"| {EXPERT} ({folder}) | | " + " | ".join(f"{x:.2f}" for x in psnr) + " |")
     if references and params is not None:
         tuned = tune(params, bandwidths, episodes, workers=workers, switch=False)
         for name in ("greedy-dwell", "tsp-dwell"):
