@@ -9,11 +9,20 @@ import pytest
 
 from semuav_jax.actions import OPTION_K
 from semuav_jax.agents.config import DDQNConfig
-from semuav_jax.agents.demos import SWITCH_OPTIONS, expert_choice, margin_loss, switch_choices
+from semuav_jax.agents.demos import (
+    SWITCH_OPTIONS,
+    expert_choice,
+    expert_k,
+    expert_policy,
+    margin_loss,
+    switch_choices,
+)
+from semuav_jax.agents.evaluate import expert_metrics
 from semuav_jax.agents.options import idle, idle_batch
 from semuav_jax.agents.policy import choice_policy
 from semuav_jax.agents.trainer import make_train, update
 from semuav_jax.env import reset_state
+from semuav_jax.keys import episode_keys
 from semuav_jax.lookahead import score
 from semuav_jax.rollout import episode
 
@@ -25,6 +34,20 @@ def test_the_expert_takes_the_k_of_its_bandwidth():
     """k = 16 below 7.5 kHz, 48 up to 35 kHz, 32 above (an edge belongs to the band above it)."""
     got = [int(expert_choice(jnp.float32(b), CFG)) for b in (4e3, 7.5e3, 20e3, 35e3, 45e3)]
     assert got == [OPTION_K.index(k) for k in (16.0, 48.0, 48.0, 32.0, 32.0)]
+
+
+def test_the_experts_metrics_are_its_episodes_one_by_one(params):
+    """``evaluate.expert_metrics`` (vmapped over B and layouts) equals a plain loop of episodes of the
+    expert option policy, and its k is that of its band (``expert_k``)."""
+    keys = episode_keys(3, 3)
+    got = expert_metrics(CFG, keys, params, (5e3, 40e3))
+    for j, b in enumerate((5e3, 40e3)):
+        at = params.replace(B=b)
+        assert float(expert_k(jnp.float32(b), CFG)) == (16.0 if b < 7.5e3 else 32.0)
+        for i, k in enumerate(keys):
+            m, _ = episode(expert_policy(CFG), k, at, (jnp.zeros(()), idle()))
+            np.testing.assert_allclose(got["mean_psnr"][j, i], m["mean_psnr"], rtol=1e-5)
+            assert bool(got["arrived"][j, i]) == bool(m["arrived"])
 
 
 def test_margin_loss_by_hand():

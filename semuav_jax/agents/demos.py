@@ -40,6 +40,7 @@ if TYPE_CHECKING:
     from semuav_jax.params import EnvParams
 
 L = len(OPTION_K)
+EXPERT = "its expert"  # the constant expert's name in the tables: the fixed rule an agent with demonstrations must beat
 SWITCH_OPTIONS = tuple(range(L)) + tuple(TOUR_TARGETS * L + i for i in range(L))  # TSP-dwell's, then greedy-dwell's
 
 

@@ -22,7 +22,7 @@ import numpy as np
 from baselines.report import BANDWIDTHS, best_arriving, reference_summary, summary, tune
 from baselines.report_table import reference_line
 from semuav_jax.agents.config import DDQNConfig
-from semuav_jax.agents.demos import expert_k
+from semuav_jax.agents.demos import EXPERT, expert_k
 from semuav_jax.agents.evaluate import expert_metrics, seed_metrics
 from semuav_jax.agents.network import q_network
 from semuav_jax.distributed import is_main
@@ -50,7 +50,6 @@ MARGINS = (
     "exact planner",
     "plan-switch",
 )  # every reference the agent is compared with, paired
-EXPERT = "its expert"  # the fixed rule an agent with demonstrations learns from (agents/demos.py)
 
 
 def _header(names: Iterable[str]) -> str:
