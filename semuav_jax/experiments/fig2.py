@@ -27,8 +27,7 @@ from baselines.dwell import DWELL_POLICIES
 from baselines.planner import PlanState, make_plans
 from baselines.report import flights, tune
 from semuav_jax.agents.config import DDQNConfig
-from semuav_jax.agents.demos import EXPERT
-from semuav_jax.agents.evaluate import expert_metrics, seed_metrics
+from semuav_jax.agents.evaluate import seed_metrics
 from semuav_jax.agents.network import QNetwork
 from semuav_jax.experiments.behaviour import behaviour, path, summarize, traced_runs
 from semuav_jax.experiments.stages import Stages
@@ -139,9 +138,6 @@ def run(
         ],
     )
     agent = stage("agent evaluated", lambda: seed_metrics(network, nets, config, keys, params, sweep_B))
-    if config.demo_steps:  # the fixed rule of the agent's demonstrations: a reference it must beat too
-        expert = stage("its expert flown", lambda: expert_metrics(config, keys, params, sweep_B))
-        refs = [{**ref, EXPERT: {"v_b": None, **{k: v[j] for k, v in expert.items()}}} for j, ref in enumerate(refs)]
     out = {
         "layouts": len(keys),
         "test_seed": TEST_SEED,
@@ -222,8 +218,8 @@ def panel_b(keys: jax.Array, params: EnvParams, velocities: Sequence[float], ran
 
 def markdown(r: dict) -> str:
     """The tables of docs/RESULTS.md: panel (a) with the agent's margins, panel (b), and the behaviour at 25 kHz."""
-    mine = (EXPERT,) if EXPERT in r["panel_a"][0] else ()
-    refs, margins = REFERENCES + mine, ("tsp v_b*", "tsp-dwell", *mine, "dwell-switch", "plan-switch")
+    refs = REFERENCES
+    margins = ("tsp v_b*", "tsp-dwell", "dwell-switch", "plan-switch")
     lines = [
         f"{r['layouts']} test layouts (seed {r['test_seed']}); DDQN: mean of {r['seeds']} seeds ± t interval "
         f"across seeds; references ± 95 % interval over layouts; v_b* from {r['validation_layouts']} validation "

@@ -13,7 +13,6 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 
-from semuav_jax.agents.demos import EXPERT  # noqa: E402
 from semuav_jax.control import range_radius  # noqa: E402
 from semuav_jax.experiments.fig2 import REFERENCES  # noqa: E402
 from semuav_jax.io import save_figure  # noqa: E402
@@ -34,7 +33,6 @@ STYLE = {
     "planner": dict(color="C4", marker="D", ls="--", mfc="none", label="open-loop planner"),
     "exact planner": dict(color="C4", marker="D", label="exact planner (receding horizon)"),
     "plan-switch": dict(color="k", marker="*", ms=9, label="plan-switch (exact planner + dwell rules)"),
-    EXPERT: dict(color="C6", marker="h", ls="-.", mfc="none", label="DDQN's expert (the rule it learns from)"),
 }
 # panel (b): the policies that set their own speed
 BANDS = ("agent", "greedy-dwell", "tsp-dwell", "dwell-switch", "planner", "exact planner", "plan-switch")
