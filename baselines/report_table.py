@@ -6,13 +6,15 @@ from __future__ import annotations
 
 
 def setting(s: dict) -> str:
-    """How a row names its setting: the speed v_b, the dwell knobs, or 'plan'."""
+    """How a row names its setting: the speed v_b, the dwell knobs, an agent's expert (its k) or 'plan'."""
     if "knobs" in s:
         v, k, m = s["knobs"]
         return f"v_c {v:g}, k* {k:g}, margin {m:g} s"
     if "switch" in s:
         v, m = s["switch"]
         return f"v_c {v:g}, margin {m:g} s, k* by simulation" + (", exact plan" if s["v_b"] is None else "")
+    if "expert_k" in s:
+        return f"options 1st along the tour, k {s['expert_k']:g}"
     return "plan" if s["v_b"] is None else f"{s['v_b']:g}"
 
 

@@ -77,21 +77,18 @@ def compare(
     keys = episode_keys(TEST_SEED, episodes)
     unshielded = dataclasses.replace(config, shield_margin=None)
     per_seed = seed_metrics(network, nets, config, keys, params, bandwidths)
-    margins = MARGINS + ((EXPERT,) if config.demo_steps else ())
-    if config.demo_steps:
-        expert = expert_metrics(config, keys, params, bandwidths)
-        refs = [{**ref, EXPERT: {k: v[j] for k, v in expert.items()}} for j, ref in enumerate(refs)]
+    expert = expert_metrics(config, keys, params, bandwidths) if config.demo_steps else None
+    margins = MARGINS + ((EXPERT,) if expert else ())
     if ablate_shield and config.shield_margin is not None:
         bare = seed_metrics(network, nets, unshielded, keys, params, bandwidths)
     seeds = per_seed["mean_psnr"].shape[0]
     rows = []
     for j, (b, ref) in enumerate(zip(bandwidths, refs)):
         agent = [{k: v[s, j] for k, v in per_seed.items()} for s in range(seeds)]
-        row = {
-            "B": float(b),
-            "references": {k: reference_summary(m) for k, m in ref.items() if k != EXPERT},
-            "seeds": [],
-        }
+        row = {"B": float(b), "references": {k: reference_summary(m) for k, m in ref.items()}, "seeds": []}
+        if expert:
+            ref = {**ref, EXPERT: {k: v[j] for k, v in expert.items()}}
+            row["expert"] = {"k": float(np.asarray(expert_k(b, config))), **summary(ref[EXPERT])}
         for m in agent:
             s = {**summary(m), "shield_share": float(np.mean(m["shield_share"]))}
             for name in margins:
@@ -109,9 +106,6 @@ def compare(
         row["agent"]["arrived"] = float(arrived.mean())
         row["agent"]["arrived_wilson95"] = [float(x) for x in wilson_interval(arrived.mean(), arrived.size)]
         row["agent"]["shield_share"] = float(np.mean([s["shield_share"] for s in row["seeds"]]))
-        if config.demo_steps:
-            k = float(np.asarray(expert_k(b, config)))
-            row["expert"] = {"k": k, **summary(ref[EXPERT])}
         rows.append(row)
         a = row["agent"]
         log(
@@ -176,11 +170,7 @@ def markdown(r: dict) -> str:
         for name, s in row["references"].items():
             lines.append(reference_line(row["B"], name, s))
         if "expert" in row:
-            e = row["expert"]
-            lines.append(
-                f"| {row['B'] / 1e3:g} | {EXPERT} | options 1st along the tour, k {e['k']:g} | "
-                f"{e['mean_psnr']:.2f} ± {e['ci95']:.2f} | {e['coverage']:.2f} | {100 * e['arrived']:.1f} % |"
-            )
+            lines.append(reference_line(row["B"], EXPERT, {"expert_k": row["expert"]["k"], **row["expert"]}))
     return "\n".join(lines)
 
 
