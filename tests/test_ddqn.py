@@ -9,7 +9,7 @@ from semuav_jax.agents.config import DDQNConfig
 from semuav_jax.agents.evaluate import evaluate_agent
 from semuav_jax.agents.replay import Transition, n_step_transition, replay_add, replay_init, replay_sample
 from semuav_jax.agents.scenarios import scenario_params
-from semuav_jax.agents.trainer import double_q_target, epsilon, make_train
+from semuav_jax.agents.trainer import double_q_target, epsilon, make_train, train_bandwidths
 
 SMALL = dict(num_envs=8, steps_per_chunk=10, batch_size=16, buffer_size=400, learning_starts=64, total_steps=8 * 10 * 6)
 
@@ -58,6 +58,19 @@ def test_epsilon_schedule():
     assert float(epsilon(n // 2, cfg)) == pytest.approx((cfg.eps_start + cfg.eps_end) / 2, abs=0.05)
     assert float(epsilon(n, cfg)) == pytest.approx(cfg.eps_end)
     assert float(epsilon(10 * n, cfg)) == pytest.approx(cfg.eps_end)
+
+
+def test_train_bandwidths_linear_and_log(params):
+    """Four envs over 4-32 kHz: evenly 4, 13.33, 22.67, 32 kHz; geometrically 4, 8, 16, 32 kHz
+    (ratio (32/4)^(1/3) = 2); no range: the scenario's B for every env."""
+    cfg = lambda **kw: DDQNConfig(num_envs=4, learning_starts=8, batch_size=8, bandwidth_range=(4e3, 32e3), **kw)
+    np.testing.assert_allclose(train_bandwidths(cfg(), params), [4e3, 40e3 / 3, 68e3 / 3, 32e3], rtol=1e-6)
+    log = train_bandwidths(cfg(bandwidth_spacing="log"), params)
+    np.testing.assert_allclose(log, [4e3, 8e3, 16e3, 32e3], rtol=1e-5)
+    one = DDQNConfig(num_envs=4, learning_starts=8, batch_size=8, bandwidth_range=None)
+    np.testing.assert_array_equal(train_bandwidths(one, params), np.full(4, params.B, np.float32))
+    with pytest.raises(ValueError, match="bandwidth_spacing must be one of .*got 'cubic'"):
+        cfg(bandwidth_spacing="cubic")
 
 
 @pytest.fixture(scope="module")

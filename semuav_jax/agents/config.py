@@ -15,6 +15,7 @@ from semuav_jax.actions import ACTION_MODES, OPTION_K
 
 DEMO_EXPERTS = ("constant", "switch")  # agents/demos.py
 TOURS = ("replanned", "shortest")  # agents/options.py
+SPACINGS = ("linear", "log")  # agents/trainer.py train_bandwidths
 SLOTS_PER_OPTION = 16  # slots a random option lasts, about: sizes the warm-up of option agents
 
 
@@ -97,6 +98,12 @@ class DDQNConfig:
         "(lo, hi) Hz: the envs train at bandwidths evenly spaced in the range "
         "(one agent for every B); none: the scenario's B",
     )
+    bandwidth_spacing: str = option(
+        "linear",
+        "how the envs' bandwidths are spaced over bandwidth_range: linear (evenly) or log (geometric: "
+        "more envs at low B)",
+        choices=SPACINGS,
+    )
 
     def __post_init__(self) -> None:
         for name in ("hidden", "bandwidth_range", "demo_k", "demo_edges"):  # lists (JSON, command line): tuples
@@ -119,6 +126,8 @@ class DDQNConfig:
             raise ValueError(f"tour must be one of {TOURS}, got {self.tour!r}")
         if self.shortest_tour and not self.uses_options:
             raise ValueError("tour='shortest' orders the targets of options: it needs actions='option'")
+        if self.bandwidth_spacing not in SPACINGS:
+            raise ValueError(f"bandwidth_spacing must be one of {SPACINGS}, got {self.bandwidth_spacing!r}")
         if self.demo_expert not in DEMO_EXPERTS:
             raise ValueError(f"demo_expert must be one of {DEMO_EXPERTS}, got {self.demo_expert!r}")
         if isinstance(self.demo_every, bool) or not isinstance(self.demo_every, int) or self.demo_every < 1:

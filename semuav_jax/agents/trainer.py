@@ -41,11 +41,12 @@ LOGGED = ("mean_psnr", "return", "arrived", "coverage")  # episode metrics avera
 
 
 def train_bandwidths(config: DDQNConfig, params: EnvParams) -> jax.Array:
-    """(num_envs,) bandwidth of each training env: evenly spaced over ``bandwidth_range``, or params.B."""
+    """(num_envs,) bandwidth of each training env: spaced over ``bandwidth_range`` evenly or
+    geometrically (``bandwidth_spacing``), or params.B."""
     if config.bandwidth_range is None:
         return jnp.full((config.num_envs,), params.B, jnp.float32)
-    lo, hi = config.bandwidth_range
-    return jnp.linspace(lo, hi, config.num_envs).astype(jnp.float32)
+    spaced = jnp.geomspace if config.bandwidth_spacing == "log" else jnp.linspace
+    return spaced(*config.bandwidth_range, config.num_envs).astype(jnp.float32)
 
 
 def epsilon(step: ArrayLike, config: DDQNConfig) -> jax.Array:
