@@ -95,7 +95,7 @@ class DDQNConfig:
     demo_every: int = option(32, "slots between two decisions of the switch expert")
     bandwidth_range: tuple | None = option(
         (4e3, 45e3),
-        "(lo, hi) Hz: the envs train at bandwidths evenly spaced in the range "
+        "(lo, hi) Hz: the envs train at bandwidths spaced over the range by bandwidth_spacing "
         "(one agent for every B); none: the scenario's B",
     )
     bandwidth_spacing: str = option(
@@ -122,14 +122,11 @@ class DDQNConfig:
         for name in ints:
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)}")
-        if self.tour not in TOURS:
-            raise ValueError(f"tour must be one of {TOURS}, got {self.tour!r}")
+        for f in dataclasses.fields(self):
+            if "choices" in f.metadata and getattr(self, f.name) not in f.metadata["choices"]:
+                raise ValueError(f"{f.name} must be one of {f.metadata['choices']}, got {getattr(self, f.name)!r}")
         if self.shortest_tour and not self.uses_options:
             raise ValueError("tour='shortest' orders the targets of options: it needs actions='option'")
-        if self.bandwidth_spacing not in SPACINGS:
-            raise ValueError(f"bandwidth_spacing must be one of {SPACINGS}, got {self.bandwidth_spacing!r}")
-        if self.demo_expert not in DEMO_EXPERTS:
-            raise ValueError(f"demo_expert must be one of {DEMO_EXPERTS}, got {self.demo_expert!r}")
         if isinstance(self.demo_every, bool) or not isinstance(self.demo_every, int) or self.demo_every < 1:
             raise ValueError(f"demo_every must be an integer >= 1 (slots), got {self.demo_every!r}")
         if int(self.demo_steps) < 0:
