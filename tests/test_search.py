@@ -141,7 +141,7 @@ def test_the_search_table_names_the_layouts_it_used():
                        log=lambda _: None)  # fmt: skip
     assert r["layout_seed"] == VALIDATION_SEED and r["layouts"] == "validation"
     assert f"First 2 validation layouts (seed {VALIDATION_SEED})" in markdown(r)
-    knobs = "a decision every 8 slots, 4 target devices, the agent's 4 best options by Q, 15 rules (constant options"
+    knobs = "a decision every 10 slots, 4 target devices, the agent's 4 best options by Q, 15 rules (constant options"
     assert r["rules"] == 15 and knobs in markdown(r)  # the defaults: SEARCH_EVERY, SEARCH_TARGETS, SEARCH_TOP
     (row,) = r["rows"]
     assert len(row["seeds"]) == r["seeds"] == 3

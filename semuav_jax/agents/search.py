@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from semuav_jax.env import EnvState
     from semuav_jax.params import EnvParams
 
-SEARCH_EVERY = 8  # slots (4 s) between two decisions
+SEARCH_EVERY = 10  # slots (5 s) between two decisions
 SEARCH_SAMPLES = 1  # delay draws per candidate and decision
 SEARCH_TARGETS = OPTION_TARGETS  # option agents: the targets j (eq. 6.4) whose options are simulated
 SEARCH_TOP = 4  # option agents: simulate only the agent's TOP best options by Q (None: every one)

@@ -1,6 +1,6 @@
 """The agent with search at the BS against the reactive agent and the references
 
-``semuav-search RUN_FOLDER [--episodes 100] [--every 8] [--targets 4] [--top M] [--no-rules] [--validation]
+``semuav-search RUN_FOLDER [--episodes 100] [--every 10] [--targets 4] [--top M] [--no-rules] [--validation]
 [--no-references] [--tuning EVAL_JSON] [--json out.json]``: the table of ``semuav_jax.experiments.search`` for a
 finished train.py run folder, the dwell knobs from its eval.json (or ``--tuning``'s; docs/ddqn.md,
 "The agent with search"), printed as Markdown.
