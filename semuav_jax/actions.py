@@ -39,7 +39,7 @@ def action_to_accel(action: ArrayLike, params: EnvParams) -> jax.Array:
 
 # ---------------------------------------------------------------- waypoint actions (eq. 6.2)
 
-ACTION_MODES = ("table", "waypoint", "dwell", "option")  # eqs. 6.1, 6.2, 6.3, 6.4
+ACTION_MODES = ("table", "waypoint", "dwell", "option", "mixed")  # eqs. 6.1, 6.2, 6.3, 6.4, 6.4 with 6.2
 ENV_ACTION_MODES = ("table", "waypoint", "dwell")  # what an env step takes: an option needs the BS's policy state
 
 TARGETS = 3  # the nearest unfinished devices a waypoint action can aim at
@@ -103,7 +103,8 @@ TOUR_TARGETS = 2  # targets j < TOUR_TARGETS count along the tour, the others by
 OPTION_K = (16.0, 24.0, 32.0, 48.0, 64.0, 96.0)  # symbols: "serve until k" of the options
 OPTION_HOME = OPTION_TARGETS * len(OPTION_K)  # the last option: fly home
 NUM_OPTIONS = OPTION_HOME + 1
-HOME_CODE = -1  # the command code of the home option
+NUM_MIXED_ACTIONS = NUM_OPTIONS + NUM_WAYPOINT_ACTIONS  # options, then waypoint actions for one slot each
+HOME_CODE = -1  # the command code of the home option; waypoint action w has code HOME_CODE - 1 - w
 
 
 def option_fits(state: EnvState, params: EnvParams, margin: ArrayLike) -> jax.Array:
@@ -126,7 +127,8 @@ def option_code(
     Option 0 followed throughout is TSP-dwell with k* = k along ``tour`` (its own order along the
     shortest path, ``semuav_jax.tour.shortest_path``), option
     TOUR_TARGETS * len(OPTION_K) greedy-dwell (eq. 7.10), both with the margin of ``fits``.
-    OPTION_HOME, or no candidate, is HOME_CODE (k = inf)."""
+    OPTION_HOME, or no candidate, is HOME_CODE (k = inf); a choice NUM_OPTIONS + w (the "mixed"
+    actions) is waypoint action w of eq. 6.2 for one slot, code HOME_CODE - 1 - w (k = 0)."""
     L = len(OPTION_K)
     k = jnp.asarray(OPTION_K)[jnp.minimum(choice, OPTION_HOME - 1) % L]
     target = choice // L
@@ -136,7 +138,9 @@ def option_code(
     j = jnp.minimum(jnp.where(target < TOUR_TARGETS, target, target - TOUR_TARGETS), jnp.sum(short) - 1)
     n = order[jnp.argmax(short & (rank == j))]
     home = (choice >= OPTION_HOME) | ~jnp.any(short)
-    return jnp.where(home, HOME_CODE, n).astype(jnp.int32), jnp.where(home, jnp.inf, k)
+    waypoint = choice >= NUM_OPTIONS
+    code = jnp.where(waypoint, HOME_CODE - 1 - (choice - NUM_OPTIONS), jnp.where(home, HOME_CODE, n))
+    return code.astype(jnp.int32), jnp.where(waypoint, 0.0, jnp.where(home, jnp.inf, k))
 
 
 def option_codes(
@@ -146,30 +150,35 @@ def option_codes(
     return jax.vmap(lambda c: option_code(c, m, fits, order, tour, params))(jnp.arange(count))
 
 
-def option_accel(code: ArrayLike, state: EnvState, params: EnvParams) -> jax.Array:
+def option_accel(code: ArrayLike, state: EnvState, params: EnvParams, waypoints: bool = False) -> jax.Array:
     """The command of an option's code: cruise at DWELL_SPEED to device ``code`` and stay at rest over
-    it (eq. 7.3 with STOP_BRAKE), or, for HOME_CODE, fly home at v_max (eq. 7.1)."""
+    it (eq. 7.3 with STOP_BRAKE), or, for HOME_CODE, fly home at v_max (eq. 7.1); with ``waypoints``
+    (static: the "mixed" actions), a code below HOME_CODE is waypoint action HOME_CODE - 1 - code."""
     n = jnp.maximum(code, 0)
     d = jnp.linalg.norm(state.dev_pos - state.q, axis=-1)
     one = jnp.arange(state.dev_pos.shape[0]) == n
     stay = rest_command(state.q, state.v, state.dev_pos, d, one, DWELL_SPEED, params.v_max, params)
-    return jnp.where(code >= 0, stay, home_command(state.q, state.v, params.v_max, params))
+    accel = jnp.where(code >= 0, stay, home_command(state.q, state.v, params.v_max, params))
+    if not waypoints:
+        return accel
+    return jnp.where(code < HOME_CODE, waypoint_accel(jnp.maximum(HOME_CODE - 1 - code, 0), state, params), accel)
 
 
 def num_actions(mode: str, params: EnvParams) -> int:
     """How many discrete actions the action mode ``mode`` has (eq. 6.1: levels^2; eq. 6.2:
-    NUM_WAYPOINT_ACTIONS; eq. 6.3: NUM_DWELL_ACTIONS; eq. 6.4: NUM_OPTIONS)."""
+    NUM_WAYPOINT_ACTIONS; eq. 6.3: NUM_DWELL_ACTIONS; eq. 6.4: NUM_OPTIONS; mixed: NUM_MIXED_ACTIONS)."""
     sizes = {"waypoint": NUM_WAYPOINT_ACTIONS, "dwell": NUM_DWELL_ACTIONS, "option": NUM_OPTIONS}
+    sizes["mixed"] = NUM_MIXED_ACTIONS
     return sizes.get(mode, params.levels * params.levels)
 
 
 def to_accel(mode: str, action: ArrayLike, state: EnvState, params: EnvParams) -> jax.Array:
     """The acceleration of discrete ``action`` in the action mode ``mode`` (static): eq. 6.1, 6.2 or
-    6.3, or for options (eq. 6.4) the command code of :func:`option_code`."""
+    6.3, or for options (eq. 6.4, and "mixed") the command code of :func:`option_code`."""
     if mode == "waypoint":
         return waypoint_accel(action, state, params)
     if mode == "dwell":
         return dwell_accel(action, state, params)
-    if mode == "option":
-        return option_accel(action, state, params)
+    if mode in ("option", "mixed"):
+        return option_accel(action, state, params, waypoints=mode == "mixed")
     return action_to_accel(action, params)

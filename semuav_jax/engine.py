@@ -26,7 +26,7 @@ from semuav_jax.actions import to_accel
 from semuav_jax.env import EnvState, transition_u
 from semuav_jax.params import EnvParams
 
-POLICY_MODES = ("accel", "table", "waypoint", "dwell", "option")
+POLICY_MODES = ("accel", "table", "waypoint", "dwell", "option", "mixed")
 
 
 def full_state(state: EnvState, params: EnvParams) -> EnvState:

@@ -56,7 +56,8 @@ class DDQNConfig:
         "waypoint",
         "waypoint (eq. 6.2: device, speed or hover, home), dwell (eq. 6.3: those and stay-until-k over the "
         "nearest device), option (eq. 6.4: serve one of the 4 nearest devices until k symbols, or go home; "
-        "one decision per option) or table (the paper's 9 accelerations)",
+        "one decision per option), mixed (the options and the waypoint actions, each for one slot) or table (the "
+        "paper's 9 accelerations)",
     )
     option_inputs: bool = option(
         False,
@@ -93,6 +94,9 @@ class DDQNConfig:
         choices=DEMO_EXPERTS,
     )
     demo_every: int = option(32, "slots between two decisions of the switch expert")
+    demo_from: float = option(
+        0.0, "Hz: the demonstration memory keeps only the decisions of envs at this bandwidth or above (0: every env)"
+    )
     bandwidth_range: tuple | None = option(
         (4e3, 45e3),
         "(lo, hi) Hz: the envs train at bandwidths spaced over the range by bandwidth_spacing "
@@ -144,6 +148,11 @@ class DDQNConfig:
             )
         if list(self.demo_edges) != sorted(self.demo_edges) or not all(0 < e < float("inf") for e in self.demo_edges):
             raise ValueError(f"demo_edges must be increasing finite bandwidths > 0 (Hz), got {self.demo_edges}")
+        if isinstance(self.demo_from, bool) or not 0.0 <= self.demo_from < float("inf"):
+            raise ValueError(f"demo_from must be a finite bandwidth >= 0 (Hz), got {self.demo_from!r}")
+        top = float("inf") if self.bandwidth_range is None else self.bandwidth_range[1]
+        if self.demo_steps and self.demo_from > top:
+            raise ValueError(f"demo_from ({self.demo_from} Hz) is above every training bandwidth: no demonstrations")
         if self.learning_starts < self.batch_size:
             raise ValueError(f"learning_starts ({self.learning_starts}) must be >= batch_size ({self.batch_size})")
         if self.learning_starts > self.buffer_size:
@@ -188,8 +197,9 @@ class DDQNConfig:
 
     @property
     def uses_options(self) -> bool:
-        """Whether the agent chooses options (eq. 6.4): one semi-MDP transition per decision."""
-        return self.actions == "option"
+        """Whether the agent chooses options (eq. 6.4; "mixed": and waypoint actions): one semi-MDP
+        transition per decision."""
+        return self.actions in ("option", "mixed")
 
     @property
     def warmup_steps(self) -> int:

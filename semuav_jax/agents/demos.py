@@ -90,12 +90,15 @@ def switch_choices(
 def demonstrate(tr: Any, ts: Any, key: jax.Array, step: Callable) -> Any:
     """``ts`` with the demonstration memory: the expert's decisions over ``demo_steps`` vmapped env
     steps (``switch``: rounded up to whole periods of ``demo_every``) from ``ts``'s envs (their
-    first decisions end nothing), which then go on as they were. ``step(tr, ts, key, eps, action)``
+    first decisions end nothing), which then go on as they were; only the decisions of envs at
+    B >= ``demo_from`` are kept. ``step(tr, ts, key, eps, action)``
     is the trainer's env step; ``tr`` its Trainer."""
     c = tr.config
     n_in = ts.obs.x.shape[-1]
     empty = ts.replace(replay=replay_init(c.buffer_size, n_in), window=pending_init(replay_init(c.num_envs, n_in).data))
-    tr = tr._replace(buffer=tr.demo_buffer)
+    keep = jnp.tile(tr.env_params.B >= c.demo_from, 2)  # a step's decisions that ended, then episodes that ended
+    add = tr.demo_buffer.add_where
+    tr = tr._replace(buffer=tr.demo_buffer._replace(add_where=lambda s, batch, valid: add(s, batch, valid & keep)))
     if c.demo_expert == "constant":
         fly = lambda ts, k: (step(tr._replace(policy=expert_policy(c)), ts, k, 0.0, None)[0], None)
         return ts.replace(demos=jax.lax.scan(fly, empty, jax.random.split(key, c.demo_steps))[0].replay)

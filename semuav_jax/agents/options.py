@@ -88,12 +88,12 @@ def running(opt: Option, obs: OptionObs, params: EnvParams) -> jax.Array:
     """Whether ``opt`` goes on: it runs, and its device holds fewer than min(k, M) symbols and still
     fits (eq. 7.9: a dwell rule leaves a device there too), or it is the home option and no more
     devices are :func:`live` than at its decision (flying off a device at speed, eqs. 7.4-7.5 can fit
-    one again, and a dwell rule turns to it)."""
+    one again, and a dwell rule turns to it). A waypoint action (a code below HOME_CODE) ends after its slot."""
     n = jnp.maximum(opt.code, 0)
     m = obs.m[n]
     serving = (m < opt.k - 1e-3) & (m < params.M - 1e-3) & obs.fits[n]
     home = (opt.code == HOME_CODE) & (jnp.sum(live(obs)) <= opt.live_at_decision)
-    return opt.active & (home | serving)
+    return opt.active & (opt.code >= HOME_CODE) & (home | serving)
 
 
 def planned_tour(obs: OptionObs, params: EnvParams, shortest: bool = False) -> jax.Array:

@@ -132,7 +132,7 @@ def option_switching(
 
     def shortlist(net: Any, _: Any, state: Any, now: Any, params: EnvParams) -> jax.Array:
         q = network.apply(net, agent_input(state, params, config))
-        q = jnp.concatenate([q[: last - 1], q[OPTION_HOME:]])  # candidate c = 1 .. last: Q index c - 1
+        q = jnp.concatenate([q[: last - 1], q[OPTION_HOME : OPTION_HOME + 1]])  # candidate c = 1 .. last: Q index c - 1
         best = 1 + jax.lax.top_k(q, top)[1].astype(jnp.int32)
         return jnp.concatenate([jnp.zeros(1, jnp.int32), best, last + 1 + jnp.arange(len(rules), dtype=jnp.int32)])
 
