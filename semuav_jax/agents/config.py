@@ -130,15 +130,15 @@ class DDQNConfig:
             if "choices" in f.metadata and getattr(self, f.name) not in f.metadata["choices"]:
                 raise ValueError(f"{f.name} must be one of {f.metadata['choices']}, got {getattr(self, f.name)!r}")
         if self.shortest_tour and not self.uses_options:
-            raise ValueError("tour='shortest' orders the targets of options: it needs actions='option'")
+            raise ValueError("tour='shortest' orders the targets of options: it needs actions='option' or 'mixed'")
         if isinstance(self.demo_every, bool) or not isinstance(self.demo_every, int) or self.demo_every < 1:
             raise ValueError(f"demo_every must be an integer >= 1 (slots), got {self.demo_every!r}")
         if int(self.demo_steps) < 0:
             raise ValueError(f"demo_steps must be >= 0, got {self.demo_steps}")
         if self.option_inputs and not self.uses_options:
-            raise ValueError("option_inputs describe options: they need actions='option'")
+            raise ValueError("option_inputs describe options: they need actions='option' or 'mixed'")
         if self.demo_steps and not self.uses_options:
-            raise ValueError("demonstrations (demo_steps > 0) come from an expert option: they need actions='option'")
+            raise ValueError("demonstrations (demo_steps > 0) are options: need actions='option' or 'mixed'")
         if self.demo_steps and not 1 <= int(self.demo_batch) < self.batch_size:
             raise ValueError(f"demo_batch must be in [1, batch_size = {self.batch_size}), got {self.demo_batch}")
         if not all(k in OPTION_K for k in self.demo_k) or len(self.demo_k) != len(self.demo_edges) + 1:
