@@ -77,6 +77,19 @@ def train_options(**options: object) -> list[str]:
 TRAIN_TINY = ["--preset", "waypoint", "--curves", "synthetic", *train_options(eval_episodes=0, workers=1, demo_steps=0)]
 
 
+def short_option_training(curves, actions: str) -> tuple:
+    """A short training of an option agent (``actions``: option or mixed) run twice with the same
+    key: (config, state, state again, chunk metrics)."""
+    from semuav_jax.agents.config import DDQNConfig
+    from semuav_jax.agents.trainer import make_train
+
+    cfg = DDQNConfig(actions=actions, num_envs=8, steps_per_chunk=20, total_steps=8 * 20 * 3,
+                     learning_starts=64, batch_size=16, buffer_size=4096, hidden=(16,), gamma=0.95)  # fmt: skip
+    tr = make_train(cfg, make_params(curves, K=60))
+    (ts, m), (ts2, _) = (jax.jit(tr.train)(jax.random.key(3)) for _ in range(2))
+    return cfg, ts, ts2, m
+
+
 def start_interruptible(cmd: list[str]) -> subprocess.Popen:
     """``cmd`` started in the repository's root with its output piped (text) and SIGINT at its
     default, as in a foreground shell: a test run in the background inherits SIGINT ignored, and

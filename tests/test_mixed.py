@@ -7,6 +7,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import short_option_training
 
 from semuav_jax.actions import (
     HOME,
@@ -75,14 +76,7 @@ def test_a_constant_waypoint_choice_flies_as_the_waypoint_agent(params, w):
 def test_mixed_training_stores_one_slot_waypoint_decisions(curves):
     """A short mixed training: every action in [0, NUM_MIXED_ACTIONS), waypoint choices among them,
     each waypoint decision one slot long (discount gamma exactly), options gamma^tau; reproducible."""
-    from semuav_jax.agents.trainer import make_train
-
-    params = make_params(curves, K=60)
-    cfg = DDQNConfig(actions="mixed", num_envs=8, steps_per_chunk=20, total_steps=8 * 20 * 3,
-                     learning_starts=64, batch_size=16, buffer_size=4096, hidden=(16,), gamma=0.95)  # fmt: skip
-    tr = make_train(cfg, params)
-    ts, m = jax.jit(tr.train)(jax.random.key(3))
-    ts2, _ = jax.jit(tr.train)(jax.random.key(3))
+    cfg, ts, ts2, m = short_option_training(curves, "mixed")
     n = int(ts.replay.size)
     action, disc = np.asarray(ts.replay.data.action[:n]), np.asarray(ts.replay.data.discount[:n])
     assert set(np.unique(action)) <= set(range(NUM_MIXED_ACTIONS))

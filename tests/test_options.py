@@ -5,6 +5,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import short_option_training
 
 from semuav_jax.actions import (
     DWELL_SPEED,
@@ -25,7 +26,6 @@ from semuav_jax.agents.replay import Transition, replay_add_where, replay_init
 from semuav_jax.agents.smdp import option_transitions, pending_init
 from semuav_jax.control import STOP_BRAKE, home_command, speed_command
 from semuav_jax.env import reset_state
-from semuav_jax.params import make_params
 
 L = len(OPTION_K)
 
@@ -243,14 +243,7 @@ def test_the_masked_write_keeps_order_and_wraps():
 def test_option_training_stores_decisions_and_reproduces(curves):
     """A short option training: every stored discount is gamma^tau for a whole tau >= 1, the memory
     holds far fewer transitions than slots, and the same key gives the same weights."""
-    from semuav_jax.agents.trainer import make_train
-
-    params = make_params(curves, K=60)
-    cfg = DDQNConfig(actions="option", num_envs=8, steps_per_chunk=20, total_steps=8 * 20 * 3,
-                     learning_starts=64, batch_size=16, buffer_size=4096, hidden=(16,), gamma=0.95)  # fmt: skip
-    tr = make_train(cfg, params)
-    ts, m = jax.jit(tr.train)(jax.random.key(3))
-    ts2, _ = jax.jit(tr.train)(jax.random.key(3))
+    cfg, ts, ts2, m = short_option_training(curves, "option")
     n = int(ts.replay.size)
     slots = (cfg.warmup_steps + 60) * cfg.num_envs
     assert 0 < n < slots / 2
