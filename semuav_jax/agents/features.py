@@ -127,7 +127,7 @@ def option_features(state: EnvState, params: EnvParams, margin: float, shortest:
     span = jnp.maximum(jnp.max(params.C) - jnp.min(params.C), 1e-6)
     gain = curve_gains(state, params)[n, jnp.arange(OPTION_HOME) % len(OPTION_K)] / span
     stay = stay_seconds(jnp.where(has, ks, 0.0), state.m[n], params)
-    via = jax.vmap(lambda p: time_via(state.q, state.v, p, DWELL_SPEED, params, stop=True))(state.dev_pos[n])
+    via = jax.vmap(lambda p: time_via(state.q, state.v, p, DWELL_SPEED, params, stop=True))(state.dev_pos)[n]
     slack = ((params.K - state.t) * params.tau - via - stay) / T
     block = jnp.stack([gain, stay / T, slack, jnp.ones_like(gain)], axis=-1) * has[:, None]
     return jnp.concatenate([waypoint_features(state, params), block.reshape(-1)]).astype(jnp.float32)
