@@ -40,6 +40,7 @@ def action_to_accel(action: ArrayLike, params: EnvParams) -> jax.Array:
 # ---------------------------------------------------------------- waypoint actions (eq. 6.2)
 
 ACTION_MODES = ("table", "waypoint", "dwell", "option", "mixed")  # eqs. 6.1, 6.2, 6.3, 6.4, 6.4 with 6.2
+OPTION_MODES = ("option", "mixed")  # the modes whose actions are options (eq. 6.4): one decision per option
 ENV_ACTION_MODES = ("table", "waypoint", "dwell")  # what an env step takes: an option needs the BS's policy state
 
 TARGETS = 3  # the nearest unfinished devices a waypoint action can aim at
@@ -107,11 +108,16 @@ NUM_MIXED_ACTIONS = NUM_OPTIONS + NUM_WAYPOINT_ACTIONS  # options, then waypoint
 HOME_CODE = -1  # the command code of the home option; waypoint action w has code HOME_CODE - 1 - w
 
 
-def option_fits(state: EnvState, params: EnvParams, margin: ArrayLike) -> jax.Array:
-    """(N,) bool, eq. 7.9: the devices that an option can still serve, i.e. flying to one at
-    DWELL_SPEED, stopping there and flying home (eqs. 7.4-7.5) fits in the time left less
-    ``margin`` seconds (negative: a flight that eqs. 7.4-7.5 time up to -margin s too long)."""
-    need = jax.vmap(lambda p: time_via(state.q, state.v, p, DWELL_SPEED, params, stop=True))(state.dev_pos)
+def option_need(state: EnvState, params: EnvParams) -> jax.Array:
+    """(N,) seconds, eqs. 7.4-7.5: flying to each device at DWELL_SPEED, stopping there and flying home."""
+    return jax.vmap(lambda p: time_via(state.q, state.v, p, DWELL_SPEED, params, stop=True))(state.dev_pos)
+
+
+def option_fits(state: EnvState, params: EnvParams, margin: ArrayLike, need: ArrayLike | None = None) -> jax.Array:
+    """(N,) bool, eq. 7.9: the devices that an option can still serve, i.e. whose :func:`option_need`
+    (or ``need``, when the caller has it) fits in the time left less ``margin`` seconds (negative: a
+    flight that eqs. 7.4-7.5 time up to -margin s too long)."""
+    need = option_need(state, params) if need is None else need
     return need + margin <= (params.K - state.t) * params.tau
 
 
@@ -167,8 +173,12 @@ def option_accel(code: ArrayLike, state: EnvState, params: EnvParams, waypoints:
 def num_actions(mode: str, params: EnvParams) -> int:
     """How many discrete actions the action mode ``mode`` has (eq. 6.1: levels^2; eq. 6.2:
     NUM_WAYPOINT_ACTIONS; eq. 6.3: NUM_DWELL_ACTIONS; eq. 6.4: NUM_OPTIONS; mixed: NUM_MIXED_ACTIONS)."""
-    sizes = {"waypoint": NUM_WAYPOINT_ACTIONS, "dwell": NUM_DWELL_ACTIONS, "option": NUM_OPTIONS}
-    sizes["mixed"] = NUM_MIXED_ACTIONS
+    sizes = {
+        "waypoint": NUM_WAYPOINT_ACTIONS,
+        "dwell": NUM_DWELL_ACTIONS,
+        "option": NUM_OPTIONS,
+        "mixed": NUM_MIXED_ACTIONS,
+    }
     return sizes.get(mode, params.levels * params.levels)
 
 
@@ -179,6 +189,6 @@ def to_accel(mode: str, action: ArrayLike, state: EnvState, params: EnvParams) -
         return waypoint_accel(action, state, params)
     if mode == "dwell":
         return dwell_accel(action, state, params)
-    if mode in ("option", "mixed"):
+    if mode in OPTION_MODES:
         return option_accel(action, state, params, waypoints=mode == "mixed")
     return action_to_accel(action, params)

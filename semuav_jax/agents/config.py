@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from semuav_jax.actions import ACTION_MODES, OPTION_K
+from semuav_jax.actions import ACTION_MODES, OPTION_K, OPTION_MODES
 
 DEMO_EXPERTS = ("constant", "switch")  # agents/demos.py
 TOURS = ("replanned", "shortest")  # agents/options.py
@@ -199,7 +199,7 @@ class DDQNConfig:
     def uses_options(self) -> bool:
         """Whether the agent chooses options (eq. 6.4; "mixed": and waypoint actions): one semi-MDP
         transition per decision."""
-        return self.actions in ("option", "mixed")
+        return self.actions in OPTION_MODES
 
     @property
     def warmup_steps(self) -> int:

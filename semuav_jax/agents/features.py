@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 
 from semuav_jax import channel
-from semuav_jax.actions import DWELL_SPEED, OPTION_HOME, OPTION_K, device_order, option_codes, option_fits
+from semuav_jax.actions import OPTION_HOME, OPTION_K, device_order, option_codes, option_fits, option_need
 from semuav_jax.agents.options import OptionObs, planned_tour
 from semuav_jax.control import time_home, time_via
 from semuav_jax.observation import DEVICE_FEATURES, GLOBAL_FEATURES
@@ -117,7 +117,8 @@ def option_features(state: EnvState, params: EnvParams, margin: float, shortest:
     and whether it has a device, for the options of time margin ``margin`` s (eq. 7.9) along the tour
     of ``options.planned_tour`` (``shortest``: the devices' numbers). Zeros for an option without a
     device."""
-    fits = option_fits(state, params, margin)
+    need = option_need(state, params)
+    fits = option_fits(state, params, margin, need)
     order = device_order(state, params)
     tour = planned_tour(OptionObs(None, state.m, fits, order, state.q, state.dev_pos), params, shortest)
     codes, ks = option_codes(OPTION_HOME, state.m, fits, order, tour, params)
@@ -127,7 +128,6 @@ def option_features(state: EnvState, params: EnvParams, margin: float, shortest:
     span = jnp.maximum(jnp.max(params.C) - jnp.min(params.C), 1e-6)
     gain = curve_gains(state, params)[n, jnp.arange(OPTION_HOME) % len(OPTION_K)] / span
     stay = stay_seconds(jnp.where(has, ks, 0.0), state.m[n], params)
-    via = jax.vmap(lambda p: time_via(state.q, state.v, p, DWELL_SPEED, params, stop=True))(state.dev_pos)[n]
-    slack = ((params.K - state.t) * params.tau - via - stay) / T
+    slack = ((params.K - state.t) * params.tau - need[n] - stay) / T
     block = jnp.stack([gain, stay / T, slack, jnp.ones_like(gain)], axis=-1) * has[:, None]
     return jnp.concatenate([waypoint_features(state, params), block.reshape(-1)]).astype(jnp.float32)
