@@ -31,13 +31,13 @@ SEED_RANGE = 2**32  # jax.random.PRNGKey aliases seeds modulo 2**32
 # and a discounted bonus only pays for arriving early)
 ONE_AGENT_ENV = {"reward_mode": "gain", "B": 25e3, "r_g": 0.0}
 PRESETS = {
-    # options (eq. 6.4) along the shortest path, the constant expert's demonstrations with the large-margin loss
-    # weighted 4, the shield at -3 s and the option margin of eq. 7.9 at -4 s (docs/ddqn.md, "Options"; the option
-    # inputs, chosen on validation layouts, are not yet the shipped run: docs/ddqn.md, "Option inputs")
+    # options (eq. 6.4) along the shortest path with the option inputs, the constant expert's demonstrations with
+    # the large-margin loss weighted 4, the shield at -3 s and the option margin of eq. 7.9 at -4 s (docs/ddqn.md,
+    # "Options")
     "default": {
         "env": ONE_AGENT_ENV,
         "agent": {"actions": "option", "gamma": 0.995, "demo_steps": 2500, "demo_weight": 4.0,
-                  "shield_margin": -3.0, "option_margin": -4.0, "tour": "shortest"},
+                  "shield_margin": -3.0, "option_margin": -4.0, "tour": "shortest", "option_inputs": True},
     },
     # the default env with the waypoint agent (eq. 6.2): one decision per slot
     "waypoint": {"env": ONE_AGENT_ENV, "agent": {}},
