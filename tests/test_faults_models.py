@@ -35,10 +35,11 @@ def test_agent_load_checks_weights_against_the_config(tmp_path, agent):
     unknown = agent.run.to_dict()
     unknown["agent"]["foo"] = 1
     w = jax.tree.map(np.asarray, agent.weights)
+    n_in = w["params"]["Dense_0"]["kernel"].shape[0]  # the shipped network's input size
     w["params"]["Dense_0"]["kernel"] = w["params"]["Dense_0"]["kernel"][:, :5]
     cases = [
         ({"run": hidden}, "do not match its config .*Dense_0/kernel"),
-        ({"weights": w}, r"Dense_0/kernel \(104, 5\) \(expected \(104, 128\)\)"),
+        ({"weights": w}, rf"Dense_0/kernel \({n_in}, 5\) \(expected \({n_in}, 128\)\)"),
         ({"run": unknown}, "unknown key in its agent config: foo"),
         ({"run": [1]}, "not a semuav-jax agent file"),
         ({"weights": "missing"}, "not a semuav-jax agent file"),
