@@ -9,6 +9,7 @@ import pytest
 from flax import serialization
 
 from semuav_jax.agents.agent import Agent, evaluate
+from semuav_jax.agents.policy import input_size
 
 
 @pytest.fixture(scope="module")
@@ -35,7 +36,7 @@ def test_agent_load_checks_weights_against_the_config(tmp_path, agent):
     unknown = agent.run.to_dict()
     unknown["agent"]["foo"] = 1
     w = jax.tree.map(np.asarray, agent.weights)
-    n_in = w["params"]["Dense_0"]["kernel"].shape[0]  # the shipped network's input size
+    n_in = input_size(agent.params, agent.run.agent)
     w["params"]["Dense_0"]["kernel"] = w["params"]["Dense_0"]["kernel"][:, :5]
     cases = [
         ({"run": hidden}, "do not match its config .*Dense_0/kernel"),
