@@ -16,8 +16,10 @@ from semuav_jax.agents.demos import (
     expert_policy,
     margin_loss,
     switch_choices,
+    weighted_margin_loss,
 )
 from semuav_jax.agents.evaluate import expert_metrics
+from semuav_jax.agents.features import bandwidth, option_features, waypoint_features
 from semuav_jax.agents.options import idle, idle_batch
 from semuav_jax.agents.policy import choice_policy
 from semuav_jax.agents.trainer import make_train, update
@@ -54,8 +56,36 @@ def test_margin_loss_by_hand():
     """J_E = max_a [Q(s, a) + l(a_E, a)] - Q(s, a_E): 0 when the expert's Q leads by the margin."""
     q = jnp.array([[1.0, 0.5, 0.9], [0.0, 2.0, 1.0]])
     # row 0, expert 0: max(1, 0.5 + 0.2, 0.9 + 0.2) - 1 = 0.1; row 1, expert 1: max(0.2, 2, 1.2) - 2 = 0
-    np.testing.assert_allclose(margin_loss(q, jnp.array([0, 1]), 0.2), 0.05, rtol=1e-6)
-    np.testing.assert_allclose(margin_loss(q, jnp.array([2, 1]), 0.0), (1.0 - 0.9) / 2, rtol=1e-6)
+    np.testing.assert_allclose(margin_loss(q, jnp.array([0, 1]), 0.2), [0.1, 0.0], rtol=1e-6)
+    np.testing.assert_allclose(margin_loss(q, jnp.array([2, 1]), 0.0), [1.0 - 0.9, 0.0], rtol=1e-6)
+
+
+@pytest.fixture
+def state(params):
+    return reset_state(jax.random.key(0), params)
+
+
+def test_the_inputs_tell_their_bandwidth(state, params):
+    """``features.bandwidth`` reads B back from a waypoint or option input, one or a batch."""
+    bs = (4e3, 7.5e3, 23.3e3, 45e3)
+    for b in bs:
+        at = params.replace(B=b)
+        np.testing.assert_allclose(bandwidth(waypoint_features(state, at)), b, rtol=1e-5)
+        np.testing.assert_allclose(bandwidth(option_features(state, at, -4.0, True)), b, rtol=1e-5)
+    x = jnp.stack([waypoint_features(state, params.replace(B=b)) for b in bs])
+    np.testing.assert_allclose(bandwidth(x), bs, rtol=1e-5)
+
+
+def test_the_large_margin_loss_weighted_by_band_by_hand(state, params):
+    """One weight multiplies the mean J_E; one per band weighs each row by its input's bandwidth
+    (5 kHz below the 7.5 kHz edge, 20 kHz between, 40 kHz above 35 kHz)."""
+    q = jnp.array([[1.0, 0.5, 0.9], [0.0, 2.0, 1.0], [0.0, 0.5, 0.1]])
+    a = jnp.array([0, 1, 0])  # J_E: 0.1, 0, 0.7
+    x = jnp.stack([waypoint_features(state, params.replace(B=b)) for b in (5e3, 20e3, 40e3)])
+    one = DDQNConfig(**{**CFG.to_dict(), "demo_weight": 4.0})
+    np.testing.assert_allclose(weighted_margin_loss(one, x, q, a), 4.0 * 0.8 / 3, rtol=1e-6)
+    bands = DDQNConfig(**{**CFG.to_dict(), "demo_weight": (2.0, 4.0, 16.0)})
+    np.testing.assert_allclose(weighted_margin_loss(bands, x, q, a), (2.0 * 0.1 + 16.0 * 0.7) / 3, rtol=1e-6)
 
 
 def test_the_demonstration_memory_holds_the_experts_decisions(params):
@@ -143,7 +173,9 @@ def test_switch_demonstrations_hold_the_simulated_options(params):
         ({"demo_k": (16.0, 48.0)}, "demo_k must hold"),
         ({"demo_edges": (35e3, 7.5e3)}, "demo_edges must be increasing"),
         ({"demo_margin": float("nan")}, "demo_margin must be finite"),
-        ({"demo_weight": 0.0}, "demo_weight must be finite and > 0"),
+        ({"demo_weight": 0.0}, "demo_weight must be one finite weight > 0"),
+        ({"demo_weight": (4.0, 8.0)}, "one per band"),
+        ({"demo_weight": (4.0, float("nan"), 8.0)}, "demo_weight must be one finite weight > 0"),
         ({"demo_steps": 10, "demo_batch": 0}, "demo_batch must be in"),
         ({"demo_steps": 10, "demo_batch": 256}, "demo_batch must be in"),
         ({"demo_expert": "planner"}, "demo_expert must be one of"),

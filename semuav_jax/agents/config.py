@@ -82,10 +82,16 @@ class DDQNConfig:
         "before training; its decisions are a demonstration memory kept for the whole run (DQfD); 0: none",
     )
     demo_batch: int = option(64, "rows of each minibatch drawn from the demonstrations (the rest: replay memory)")
-    demo_weight: float = option(1.0, "weight of the large-margin loss on the demonstration rows of each minibatch")
+    demo_weight: tuple = option(
+        (1.0,),
+        "weight of the large-margin loss on the demonstration rows of each minibatch: one for every B, or one per "
+        "band below, between and above demo_edges (by each row's bandwidth)",
+    )
     demo_margin: float = option(0.2, "large margin of Q(s, expert's choice) over every other choice (scaled rewards)")
     demo_k: tuple = option((16.0, 48.0, 32.0), "the expert option's k below, between and above demo_edges")
-    demo_edges: tuple = option((7.5e3, 35e3), "Hz: the bandwidths where the expert option's k changes")
+    demo_edges: tuple = option(
+        (7.5e3, 35e3), "Hz: the bandwidths where the expert option's k (and a per-band demo_weight) changes"
+    )
     demo_expert: str = option(
         "constant",
         "constant (the option of demo_k and demo_edges at every decision) or switch (every demo_every slots the BS "
@@ -113,6 +119,8 @@ class DDQNConfig:
         for name in ("hidden", "bandwidth_range", "demo_k", "demo_edges"):  # lists (JSON, command line): tuples
             if isinstance(getattr(self, name), list):
                 object.__setattr__(self, name, tuple(getattr(self, name)))
+        w = self.demo_weight  # a number (runs before per-band weights) is one weight for every B
+        object.__setattr__(self, "demo_weight", tuple(w) if isinstance(w, (list, tuple)) else (w,))
         ints = (
             "num_envs",
             "total_steps",
@@ -179,9 +187,17 @@ class DDQNConfig:
             raise ValueError(f"lr_end must be in (0, 1], got {self.lr_end}")
         if isinstance(self.option_margin, bool) or not abs(self.option_margin) < float("inf"):
             raise ValueError(f"option_margin must be a finite number of seconds, got {self.option_margin!r}")
-        for name in ("lr", "reward_scale", "max_grad_norm", "demo_weight", "demo_margin"):
+        for name in ("lr", "reward_scale", "max_grad_norm", "demo_margin"):
             if not 0 < getattr(self, name) < float("inf"):  # NaN fails too
                 raise ValueError(f"{name} must be finite and > 0, got {getattr(self, name)}")
+        w = self.demo_weight
+        if len(w) not in (1, len(self.demo_edges) + 1) or not all(
+            not isinstance(x, bool) and isinstance(x, (int, float)) and 0 < x < float("inf") for x in w
+        ):
+            raise ValueError(
+                f"demo_weight must be one finite weight > 0, or one per band ({len(self.demo_edges) + 1}: below, "
+                f"between and above demo_edges), got {w}"
+            )
         if self.shield_margin is not None and not abs(self.shield_margin) < float("inf"):  # NaN fails too
             raise ValueError(f"shield_margin must be finite seconds (none: no shield), got {self.shield_margin}")
         if self.num_chunks < 1:

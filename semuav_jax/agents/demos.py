@@ -5,7 +5,8 @@ loss and the large-margin loss
 
     J_E = max_a [Q(s, a) + l(a_E, a)] - Q(s, a_E),   l(a_E, a) = demo_margin for a != a_E, else 0,
 
-weighted by ``demo_weight``. Two experts (``demo_expert``):
+weighted by ``demo_weight`` (one weight, or one per band of ``demo_edges`` by each row's
+bandwidth, ``features.bandwidth``). Two experts (``demo_expert``):
 
 - ``constant``: the constant option of docs/model.md eq. 6.4, the first device along the tour
   (eq. 6.5) until k symbols, k = ``demo_k`` by bandwidth (``demo_edges``), which is TSP-dwell along
@@ -28,6 +29,7 @@ import jax.numpy as jnp
 
 from semuav_jax.actions import OPTION_K, TOUR_TARGETS
 from semuav_jax.agents.config import DDQNConfig
+from semuav_jax.agents.features import bandwidth
 from semuav_jax.agents.options import Option, idle
 from semuav_jax.agents.policy import choice_policy
 from semuav_jax.agents.replay import replay_init
@@ -49,11 +51,15 @@ def expert_k(B: jax.Array, config: DDQNConfig) -> jax.Array:
     return jnp.asarray(OPTION_K)[expert_choice(B, config)]
 
 
+def band(B: jax.Array, config: DDQNConfig) -> jax.Array:
+    """The band of ``config.demo_edges`` bandwidth ``B`` lies in: 0 below the first edge, ... ."""
+    return jnp.searchsorted(jnp.asarray(config.demo_edges, jnp.float32), B, side="right")
+
+
 def expert_choice(B: jax.Array, config: DDQNConfig) -> jax.Array:
     """The expert's option at bandwidth ``B``: option i (the first along the tour, k = OPTION_K[i])
     for the k of ``config.demo_k`` between the ``demo_edges`` around B."""
-    ks = jnp.asarray([OPTION_K.index(k) for k in config.demo_k], jnp.int32)
-    return ks[jnp.searchsorted(jnp.asarray(config.demo_edges, jnp.float32), B, side="right")]
+    return jnp.asarray([OPTION_K.index(k) for k in config.demo_k], jnp.int32)[band(B, config)]
 
 
 @functools.cache
@@ -121,7 +127,16 @@ def demonstrate(tr: Any, ts: Any, key: jax.Array, step: Callable) -> Any:
 
 
 def margin_loss(q: jax.Array, action: jax.Array, margin: float) -> jax.Array:
-    """Mean over the batch of J_E: ``q`` (batch, actions), ``action`` the expert's (batch,)."""
+    """(batch,) J_E of each row: ``q`` (batch, actions), ``action`` the expert's (batch,)."""
     other = margin * (1.0 - jax.nn.one_hot(action, q.shape[-1], dtype=q.dtype))
     q_e = jnp.take_along_axis(q, action[:, None], axis=-1)[:, 0]
-    return jnp.mean(jnp.max(q + other, axis=-1) - q_e)
+    return jnp.max(q + other, axis=-1) - q_e
+
+
+def weighted_margin_loss(config: DDQNConfig, x: jax.Array, q: jax.Array, action: jax.Array) -> jax.Array:
+    """``demo_weight`` times the mean J_E of demonstration rows with inputs ``x`` (batch, n): one
+    weight times the mean, or the mean of each row's J_E times the weight of its bandwidth's band."""
+    j, w = margin_loss(q, action, config.demo_margin), config.demo_weight
+    if len(w) == 1:
+        return w[0] * jnp.mean(j)
+    return jnp.mean(jnp.asarray(w, jnp.float32)[band(bandwidth(x), config)] * j)

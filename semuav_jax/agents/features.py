@@ -30,6 +30,7 @@ if TYPE_CHECKING:
 NEAR_GAIN = 20.0  # tanh(20 x): resolves tens of metres in area-normalized offsets
 SLACK_SPEED = 12.0  # m/s: the pass speed at which a device's time slack is computed
 B_REF = 20e3  # Hz: the bandwidth feature is log2(B / B_REF)
+BANDWIDTH = GLOBAL_FEATURES + 3  # its index in waypoint_features (after the goal's tanh and the slack home)
 
 
 def table_features(obs: jax.Array) -> jax.Array:
@@ -96,6 +97,12 @@ def waypoint_features(state: EnvState, params: EnvParams) -> jax.Array:
         axis=-1,
     )
     return jnp.concatenate([glob, dev.reshape(-1)]).astype(jnp.float32)
+
+
+def bandwidth(x: jax.Array) -> jax.Array:
+    """(...,) Hz: the bandwidth B at which a :func:`waypoint_features` or :func:`option_features`
+    input ``x`` (..., n) was computed, read off its log2(B / B_REF) entry."""
+    return B_REF * jnp.exp2(x[..., BANDWIDTH])
 
 
 def curve_gains(state: EnvState, params: EnvParams) -> jax.Array:

@@ -36,7 +36,7 @@ PRESETS = {
     # "Options")
     "default": {
         "env": ONE_AGENT_ENV,
-        "agent": {"actions": "option", "gamma": 0.995, "demo_steps": 2500, "demo_weight": 4.0,
+        "agent": {"actions": "option", "gamma": 0.995, "demo_steps": 2500, "demo_weight": (4.0,),
                   "shield_margin": -3.0, "option_margin": -4.0, "tour": "shortest", "option_inputs": True},
     },
     # the default env with the waypoint agent (eq. 6.2): one decision per slot

@@ -23,7 +23,7 @@ from flax import struct
 from jax.typing import ArrayLike
 
 from semuav_jax.agents.config import DDQNConfig
-from semuav_jax.agents.demos import demonstrate, margin_loss
+from semuav_jax.agents.demos import demonstrate, weighted_margin_loss
 from semuav_jax.agents.layouts import layout_pool, restart_state
 from semuav_jax.agents.network import QNetwork, num_actions, q_network
 from semuav_jax.agents.policy import Explore, explore_policy, input_size, network_input
@@ -112,11 +112,12 @@ def td_loss(tr: Trainer, params: Any, target_params: Any, batch: Transition) -> 
 
 def loss(tr: Trainer, params: Any, target_params: Any, batch: Transition, demo_action: jax.Array | None) -> jax.Array:
     """The TD loss of ``batch``; with ``demo_action``, the expert's choices of the batch's last rows
-    (demonstrations), plus demo_weight times their large-margin loss (agents/demos.py)."""
+    (demonstrations), plus their large-margin loss weighted by demo_weight (agents/demos.py)."""
     value, q = td_loss(tr, params, target_params, batch)
     if demo_action is None:
         return value
-    return value + tr.config.demo_weight * margin_loss(q[-len(demo_action) :], demo_action, tr.config.demo_margin)
+    n = len(demo_action)
+    return value + weighted_margin_loss(tr.config, batch.obs[-n:], q[-n:], demo_action)
 
 
 def update(tr: Trainer, ts: TrainState, key: jax.Array) -> tuple[TrainState, jax.Array]:
