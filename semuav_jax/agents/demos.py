@@ -137,6 +137,6 @@ def weighted_margin_loss(config: DDQNConfig, x: jax.Array, q: jax.Array, action:
     """``demo_weight`` times the mean J_E of demonstration rows with inputs ``x`` (batch, n): one
     weight times the mean, or the mean of each row's J_E times the weight of its bandwidth's band."""
     j, w = margin_loss(q, action, config.demo_margin), config.demo_weight
-    if len(w) == 1:
+    if len(w) == 1:  # weight times mean, not mean of weighted rows: trains bit-identically to the shipped weights
         return w[0] * jnp.mean(j)
     return jnp.mean(jnp.asarray(w, jnp.float32)[band(bandwidth(x), config)] * j)
