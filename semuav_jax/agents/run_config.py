@@ -32,11 +32,11 @@ SEED_RANGE = 2**32  # jax.random.PRNGKey aliases seeds modulo 2**32
 ONE_AGENT_ENV = {"reward_mode": "gain", "B": 25e3, "r_g": 0.0}
 PRESETS = {
     # options (eq. 6.4) along the shortest path with the option inputs, the constant expert's demonstrations with
-    # the large-margin loss weighted 4, the shield at -3 s and the option margin of eq. 7.9 at -4 s (docs/ddqn.md,
-    # "Options")
+    # the large-margin loss weighted 0.25 below 7.5 kHz, 4 up to 35 kHz and 16 above, the shield at -3 s and the
+    # option margin of eq. 7.9 at -4 s (docs/ddqn.md, "Options" and "The large-margin loss weighted by band")
     "default": {
         "env": ONE_AGENT_ENV,
-        "agent": {"actions": "option", "gamma": 0.995, "demo_steps": 2500, "demo_weight": (4.0,),
+        "agent": {"actions": "option", "gamma": 0.995, "demo_steps": 2500, "demo_weight": (0.25, 4.0, 16.0),
                   "shield_margin": -3.0, "option_margin": -4.0, "tour": "shortest", "option_inputs": True},
     },
     # the default env with the waypoint agent (eq. 6.2): one decision per slot
