@@ -130,6 +130,17 @@ def test_option_search_goes_on_with_the_agent_or_starts_an_option(curves):
     assert np.all(np.isfinite(np.asarray(m["mean_psnr"])))
 
 
+def test_the_search_bar_counts_one_step_per_seed_and_bandwidth(tmp_path):
+    """semuav-search's progress bar: one step per (bandwidth, seed) line the search logs, 4 x 3 for
+    the shipped run; None (a bar without a total) where the folder has no readable config."""
+    from semuav_jax.cli.search import cells
+
+    assert cells(str(ROOT / "semuav_jax" / "data" / "agent")) == 4 * 3
+    assert cells(str(tmp_path)) is None
+    (tmp_path / "config.json").write_text("{not json")
+    assert cells(str(tmp_path)) is None
+
+
 @pytest.mark.slow
 def test_the_search_table_names_the_layouts_it_used():
     """semuav-search's table and JSON state the layout stream of its keys (validation here) and

@@ -10,10 +10,22 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 
+from baselines.report import BANDWIDTHS
+from semuav_jax.agents.runs import CONFIG_FILE, read_config
 from semuav_jax.agents.search import SEARCH_EVERY, SEARCH_TARGETS, SEARCH_TOP
 from semuav_jax.experiments.search import compare_search, markdown
 from semuav_jax.io import atomic_write
+
+
+def cells(folder: str) -> int | None:
+    """How many (bandwidth, seed) lines the search of ``folder`` logs, or None when its config does
+    not read (compare_search then says why)."""
+    try:
+        return len(BANDWIDTHS) * read_config(Path(folder) / CONFIG_FILE).seeds
+    except (OSError, ValueError, TypeError, KeyError):
+        return None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -39,6 +51,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--tuning", help="the eval.json whose dwell knobs to use (default: the folder's own)")
     ap.add_argument("--json", help="write the numbers here (atomically)")
     args = ap.parse_args(argv)
+    from tqdm import tqdm
+
+    bar = tqdm(total=cells(args.folder), desc="search", unit="seed x B", dynamic_ncols=True)
     try:
         r = compare_search(
             args.folder,
@@ -50,9 +65,12 @@ def main(argv: list[str] | None = None) -> int:
             validation=args.validation,
             tuning=args.tuning,
             references=not args.no_references,
+            log=lambda line: (bar.write(line), bar.update()),
         )
     except ValueError as e:
+        bar.close()
         ap.error(str(e))
+    bar.close()
     print(markdown(r))
     if args.json:
         atomic_write(args.json, json.dumps(r, indent=1).encode())
