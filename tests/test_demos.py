@@ -86,6 +86,8 @@ def test_the_large_margin_loss_weighted_by_band_by_hand(state, params):
     np.testing.assert_allclose(weighted_margin_loss(one, x, q, a), 4.0 * 0.8 / 3, rtol=1e-6)
     bands = DDQNConfig(**{**CFG.to_dict(), "demo_weight": (2.0, 4.0, 16.0)})
     np.testing.assert_allclose(weighted_margin_loss(bands, x, q, a), (2.0 * 0.1 + 16.0 * 0.7) / 3, rtol=1e-6)
+    none_low = DDQNConfig(**{**CFG.to_dict(), "demo_weight": (0.0, 4.0, 16.0)})  # no margin loss below 7.5 kHz
+    np.testing.assert_allclose(weighted_margin_loss(none_low, x, q, a), 16.0 * 0.7 / 3, rtol=1e-6)
 
 
 def test_the_demonstration_memory_holds_the_experts_decisions(params):
@@ -174,8 +176,10 @@ def test_switch_demonstrations_hold_the_simulated_options(params):
         ({"demo_edges": (35e3, 7.5e3)}, "demo_edges must be increasing"),
         ({"demo_margin": float("nan")}, "demo_margin must be finite"),
         ({"demo_weight": 0.0}, "demo_weight must be one finite weight > 0"),
-        ({"demo_weight": (4.0, 8.0)}, "one per band"),
+        ({"demo_weight": (4.0, 8.0)}, "one finite weight >= 0 per band"),
         ({"demo_weight": (4.0, float("nan"), 8.0)}, "demo_weight must be one finite weight > 0"),
+        ({"demo_weight": (0.0, 0.0, 0.0)}, "not all 0"),
+        ({"demo_weight": (-1.0, 4.0, 16.0)}, "one finite weight >= 0 per band"),
         ({"demo_steps": 10, "demo_batch": 0}, "demo_batch must be in"),
         ({"demo_steps": 10, "demo_batch": 256}, "demo_batch must be in"),
         ({"demo_expert": "planner"}, "demo_expert must be one of"),

@@ -85,7 +85,7 @@ class DDQNConfig:
     demo_weight: tuple = option(
         (1.0,),
         "weight of the large-margin loss on the demonstration rows of each minibatch: one for every B, or one per "
-        "band below, between and above demo_edges (by each row's bandwidth)",
+        "band below, between and above demo_edges (by each row's bandwidth; 0: none in that band)",
     )
     demo_margin: float = option(0.2, "large margin of Q(s, expert's choice) over every other choice (scaled rewards)")
     demo_k: tuple = option((16.0, 48.0, 32.0), "the expert option's k below, between and above demo_edges")
@@ -190,13 +190,15 @@ class DDQNConfig:
         for name in ("lr", "reward_scale", "max_grad_norm", "demo_margin"):
             if not 0 < getattr(self, name) < float("inf"):  # NaN fails too
                 raise ValueError(f"{name} must be finite and > 0, got {getattr(self, name)}")
-        w = self.demo_weight
-        if len(w) not in (1, len(self.demo_edges) + 1) or not all(
-            not isinstance(x, bool) and isinstance(x, (int, float)) and 0 < x < float("inf") for x in w
+        w = self.demo_weight  # per band a weight may be 0 (no large-margin loss in that band), not all of them
+        if (
+            len(w) not in (1, len(self.demo_edges) + 1)
+            or not all(not isinstance(x, bool) and isinstance(x, (int, float)) and 0 <= x < float("inf") for x in w)
+            or not max(w) > 0
         ):
             raise ValueError(
-                f"demo_weight must be one finite weight > 0, or one per band ({len(self.demo_edges) + 1}: below, "
-                f"between and above demo_edges), got {w}"
+                f"demo_weight must be one finite weight > 0, or one finite weight >= 0 per band "
+                f"({len(self.demo_edges) + 1}: below, between and above demo_edges; not all 0), got {w}"
             )
         if self.shield_margin is not None and not abs(self.shield_margin) < float("inf"):  # NaN fails too
             raise ValueError(f"shield_margin must be finite seconds (none: no shield), got {self.shield_margin}")
