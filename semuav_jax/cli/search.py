@@ -53,24 +53,24 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     from tqdm import tqdm
 
-    bar = tqdm(total=cells(args.folder), desc="search", unit="seed x B", dynamic_ncols=True)
-    try:
-        r = compare_search(
-            args.folder,
-            args.episodes,
-            every=args.every,
-            targets=args.targets,
-            top=args.top,
-            rules=not args.no_rules,
-            validation=args.validation,
-            tuning=args.tuning,
-            references=not args.no_references,
-            log=lambda line: (bar.write(line), bar.update()),
-        )
-    except ValueError as e:
-        bar.close()
-        ap.error(str(e))
-    bar.close()
+    # the bar's total and the search share BANDWIDTHS: one value, so the count cannot drift from the call
+    with tqdm(total=cells(args.folder), desc="search", unit="seed x B", dynamic_ncols=True) as bar:
+        try:
+            r = compare_search(
+                args.folder,
+                args.episodes,
+                bandwidths=BANDWIDTHS,
+                every=args.every,
+                targets=args.targets,
+                top=args.top,
+                rules=not args.no_rules,
+                validation=args.validation,
+                tuning=args.tuning,
+                references=not args.no_references,
+                log=lambda line: (bar.write(line), bar.update()),
+            )
+        except ValueError as e:
+            ap.error(str(e))
     print(markdown(r))
     if args.json:
         atomic_write(args.json, json.dumps(r, indent=1).encode())
