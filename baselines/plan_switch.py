@@ -72,9 +72,10 @@ def plan_switching(count: int, samples: int = SWITCH_SAMPLES) -> Switching:
 
 @partial(jax.jit, static_argnames=("sw",))
 def _choose_all(
-    sw: Switching, states: EnvState, table: jax.Array, per_episode: Any, keys: jax.Array, params: EnvParams
+    sw: Switching, states: EnvState, table: jax.Array, per_episode: Any, keys: jax.Array, params: EnvParams, t: int
 ) -> jax.Array:
-    return jax.vmap(lambda s, pe, k: choose(sw, s, table, pe, k, params)[0])(states, per_episode, keys)
+    """The candidate every episode chooses at its decision at slot ``t`` (every episode's)."""
+    return jax.vmap(lambda s, pe, k: choose(sw, s, table, pe, k, params, t=t)[0])(states, per_episode, keys)
 
 
 def fly(
@@ -101,7 +102,9 @@ def fly(
     def replan(states: EnvState, ps: HybridState | None) -> HybridState:
         plan = jax.tree.map(jnp.asarray, exact(states, None if ps is None else ps.plan))
         i = next(calls)
-        best = _choose_all(sw, states, table, (plan, rank), jax.vmap(decision_key, (0, None))(keys, i), params)
+        best = _choose_all(
+            sw, states, table, (plan, rank), jax.vmap(decision_key, (0, None))(keys, i), params, i * every
+        )
         chosen.append(np.asarray(best))
         return jax.vmap(hybrid_candidate, (None, 0, 0))(table, (plan, rank), best)
 

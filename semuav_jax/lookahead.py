@@ -97,16 +97,20 @@ def choose(
     key: jax.Array,
     params: EnvParams,
     now: Any = None,
+    t: ArrayLike | None = None,
 ) -> tuple[jax.Array, jax.Array]:
     """Eq. 7.15: (index of the best candidate, mean scores of the candidates simulated: all C, or
     those of ``sw.shortlist``) from ``state`` (``now``: the policy state there), each candidate
-    simulated to the end with the same ``samples`` delay draws."""
+    simulated to the end with the same ``samples`` delay draws. ``t``: the slot of ``state``, the
+    same for a whole batch of decisions (not vmapped), to simulate only the K - t slots left (the
+    same scores, less work); None: K slots."""
     keys = jax.random.split(key, sw.samples)
+    slots = None if t is None else params.K - t
 
     def values(policy: Policy, candidate: Callable, ids: jax.Array) -> jax.Array:
         def value(c: jax.Array) -> jax.Array:
             ps = candidate(shared, per_episode, c, now, state, params)
-            runs = jax.vmap(lambda k: episode(policy, k, params, ps, init_state=state)[0])(keys)
+            runs = jax.vmap(lambda k: episode(policy, k, params, ps, init_state=state, slots=slots)[0])(keys)
             return jnp.mean(score(runs, params))
 
         return jax.vmap(value)(ids)
@@ -136,7 +140,7 @@ def switching_episode(
 
     def period(c: Any, xs: tuple[jax.Array, jax.Array]) -> tuple[Any, tuple[jax.Array, Any]]:
         draws, i = xs
-        best, _ = choose(sw, c.state, shared, per_episode, decision_key(key, i), params, c.policy_state)
+        best, _ = choose(sw, c.state, shared, per_episode, decision_key(key, i), params, c.policy_state, i * sw.every)
         ps = sw.candidate(shared, per_episode, best, c.policy_state, c.state, params)
         c = c._replace(policy_state=ps, obs=observe(sw.policy, c.state, params))
         c, tr = jax.lax.scan(scan_body(sw.policy, params, trace), c, draws)  # slots after t = K are frozen

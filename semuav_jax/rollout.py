@@ -13,6 +13,7 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 
 from semuav_jax.engine import Policy, as_policy, numbered, observe, slot
 from semuav_jax.env import EnvState, reset_state
@@ -103,23 +104,30 @@ def episode(
     policy_state: Any = None,
     init_state: EnvState | None = None,
     trace: bool = False,
+    slots: ArrayLike | None = None,
 ) -> tuple[dict[str, jax.Array], dict[str, jax.Array] | None]:
     """One episode of K slots from ``init_state`` (or a reset with ``key``, its devices numbered as
     the policy numbers them); returns (metrics, trace).
 
     The trace (when asked) holds, per slot, the state fields of ``TRACE_FIELDS`` (devices in the
-    drawn numbering) and the reward.
+    drawn numbering) and the reward. ``slots`` (an int, traced or not; no trace) runs only the
+    first ``slots`` of the K slots, with their delay draws: from a state at slot t, ``K - t`` slots
+    give the metrics of all K (the slots after the end are frozen) at the cost of the ones left.
     """
     policy = as_policy(policy)
     k_reset, k_steps = jax.random.split(key)
     state, back = new_episode(policy, k_reset, params) if init_state is None else (init_state, None)
-    # unroll=2 lets XLA fuse across two slots: ~15 % faster on CPU (docs/performance.md)
-    c, tr = jax.lax.scan(
-        scan_body(policy, params, trace),
-        start(policy, state, policy_state, params),
-        delay_draws(k_steps, params),
-        unroll=2,
-    )
+    body, c = scan_body(policy, params, trace), start(policy, state, policy_state, params)
+    u = delay_draws(k_steps, params)
+    if slots is None:  # unroll=2 lets XLA fuse across two slots: ~15 % faster on CPU (docs/performance.md)
+        c, tr = jax.lax.scan(body, c, u, unroll=2)
+    elif trace:
+        raise ValueError("an episode of fewer slots (slots) has no trace")
+    else:  # two slots per iteration, as the scan's unroll=2, then the odd one
+        n = jnp.clip(jnp.asarray(slots, jnp.int32), 0, params.K)
+        pair = lambda j, c: body(body(c, u[2 * j])[0], u[2 * j + 1])[0]
+        c = jax.lax.fori_loop(0, n // 2, pair, c)
+        c, tr = jax.lax.cond(n % 2 == 1, lambda c: body(c, u[n - 1])[0], lambda c: c, c), None
     return finish(policy, c, params), drawn_numbering(tr, back)
 
 

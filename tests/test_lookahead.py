@@ -68,6 +68,20 @@ def test_the_choice_is_the_best_simulated_candidate(p):
     assert int(best) == int(np.argmax(by_hand))
 
 
+def test_simulating_the_slots_left_chooses_the_same_by_the_same_scores(p):
+    """choose(t=...) simulates only the K - t slots left from a state at slot t: the same scores
+    bit for bit as simulating K slots (the slots after the end are frozen)."""
+    sw = switching(16, 2, 12)
+    table, rank = knob_table(25.0, -2.0), jnp.arange(10, dtype=jnp.int32)
+    s = reset_state(jax.random.PRNGKey(2), p).replace(t=jnp.int32(101))
+    key = jax.random.PRNGKey(9)
+    best, values = choose(sw, s, table, rank, key, p)
+    best_left, values_left = jax.jit(lambda t: choose(sw, s, table, rank, key, p, t=t))(101)
+    np.testing.assert_array_equal(values_left, values)
+    assert int(best_left) == int(best)
+    assert len(set(np.asarray(values).round(3).tolist())) > 1  # candidates that differ: a real choice
+
+
 def test_score_puts_arrival_with_slack_first(p):
     T = p.K * p.tau
     m = {k: jnp.asarray(v) for k, v in {"mean_psnr": [30.0, 20.0, 25.0], "arrived": [False, True, True]}.items()}

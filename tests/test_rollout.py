@@ -48,6 +48,34 @@ def test_rollout_equals_python_loop(params):
         assert float(metrics["return"][e]) == pytest.approx(ret, rel=1e-4, abs=1e-3)
 
 
+@pytest.mark.parametrize("t", [37, 60])  # K - t odd (213 slots left) and even (190)
+def test_the_slots_left_are_the_whole_episode_and_fewer_slots_stop_early(params, t):
+    """From the state at slot t, ``episode(slots=K - t)`` gives the K-slot episode's metrics bit for
+    bit (the slots after the end are frozen); ``slots=n`` is the first n slots (a Python loop)."""
+    k_reset, k_run = jax.random.split(jax.random.key(5))
+    wobble = jnp.array([0.0, 1.5])
+    step = jax.jit(env.transition_u)
+    s, us = env.reset_state(k_reset, params), delay_draws(k_reset, params)
+    for i in range(t):
+        s, _ = step(us[i], s, toward_goal(wobble, s, params)[0], params)
+    assert int(s.t) == t and not bool(s.done)
+    run = jax.jit(lambda n: episode(toward_goal, k_run, params, wobble, init_state=s, slots=n)[0])
+    whole = episode(toward_goal, k_run, params, wobble, init_state=s)[0]
+    left = run(params.K - t)
+    for name in whole:
+        np.testing.assert_array_equal(left[name], whole[name], err_msg=name)
+    few = run(5)
+    u = delay_draws(jax.random.split(k_run)[1], params)
+    for i in range(5):
+        s, _ = step(u[i], s, toward_goal(wobble, s, params)[0], params)
+    assert int(s.t) == t + 5
+    for name, value in episode_metrics(s, params).items():
+        assert float(few[name]) == pytest.approx(float(value), rel=1e-5, abs=1e-5), name
+    assert float(few["mission_time"]) < float(whole["mission_time"])
+    with pytest.raises(ValueError, match="no trace"):
+        episode(toward_goal, k_run, params, wobble, init_state=s, slots=3, trace=True)
+
+
 def toward_device(i):
     """Come to rest over device ``i`` (by its number), whatever it holds."""
 
