@@ -1,8 +1,9 @@
 """Milliseconds per decision at the BS (docs/model.md eq. 7.15): one ``lookahead.choose`` (every
-candidate simulated to the end of the mission) for one UAV, as the BS computes it within the
-processing delay (Delta_proc <= 0.1 s), for dwell-switch (12 candidates) and the agent with search
-(the shipped agent, or the agent of ``--run``, with the search knobs of ``semuav-search``).
-States: the first slot of ``--states`` test layouts at B = 25 kHz.
+candidate simulated over the slots left to the end of the mission) for one UAV, as the BS computes
+it within the processing delay (Delta_proc <= 0.1 s), for dwell-switch (12 candidates) and the agent
+with search (the shipped agent, or the agent of ``--run``, with the search knobs of
+``semuav-search``). States: the first slot of ``--states`` test layouts at B = 25 kHz, where the
+most slots are left (K).
 
     taskset -c 0 python benchmarks/decision.py [--states 50] [--run FOLDER --every 16 --top 3 --no-rules]
 
@@ -59,7 +60,7 @@ cases = {
 }
 rows = []
 for name, (sw, shared, per) in cases.items():
-    decide = jax.jit(lambda s, pe, k, sw=sw, shared=shared: choose(sw, s, shared, pe, k, params)[0])
+    decide = jax.jit(lambda s, pe, k, sw=sw, shared=shared: choose(sw, s, shared, pe, k, params, t=s.t)[0])
     times = []
     for i in range(args.states + 1):
         s = reset_state(jax.random.split(keys[i])[0], params)
